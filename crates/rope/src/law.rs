@@ -1,0 +1,655 @@
+//! Rope constitutive laws (Figs. 1-2, eqs. 1-5 of the paper) and their time stepping.
+//!
+//! A rope is a chain of elements in series, all carrying the same tension `f`:
+//!
+//! ```text
+//!   head (k1 spring, optionally || c1 dashpot)  -- c2 dashpot (creep)  -- Kelvin (k3 || c3) ...  -- ratchet || kp
+//! ```
+//!
+//! Total strain `e = e1 + e2 + sum(e3_j) + ep`. The elastic law is the head spring alone;
+//! the four-element (Burgers) law adds the c2 dashpot and one Kelvin element; Flory's
+//! law adds the ratchet || kp element: the plastic strain `ep` holds its largest value
+//! and grows only while the tension exceeds the previous peak, with
+//! `f_peak = kp * ep` (eq. 2).
+//!
+//! A rope never pushes: when the imposed strain is shorter than the rope's natural
+//! length (`e < e2 + sum(e3) + ep`) the rope is slack, `f = 0`, the head spring is
+//! unloaded, the creep dashpot and the ratchet hold, and each Kelvin element relaxes
+//! towards zero through its own dashpot.
+//!
+//! # Time stepping
+//!
+//! Each step imposes the total strain at the end of the step and returns the tension.
+//! The tension is taken piecewise linear in time over a step (first-order hold); under
+//! that hold every linear element is integrated *exactly*: a Kelvin element
+//! `k e + c de/dt = f` by its exponential with the exact hold weights, the creep
+//! dashpot by the trapezoid (exact for a linear tension). The step is therefore
+//! unconditionally stable for any rope and any `dt`, second-order accurate, and the
+//! unknown end tension solves one scalar monotone equation: closed form for linear
+//! laws (a piecewise-linear function of the end strain: slack / elastic / plastic),
+//! safeguarded Newton when an effect makes an element non-linear.
+
+use serde::{Deserialize, Serialize};
+
+use crate::catalog::RopeParams;
+use crate::error::RopeError;
+
+/// Largest number of Kelvin (retarded-elasticity) elements a law may hold.
+pub const MAX_KELVIN: usize = 3;
+
+/// Which of the paper's laws to build from a catalog rope.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LawKind {
+    /// `f = k1 * e` (eq. 13; stainless steel).
+    Elastic,
+    /// Burgers model of Fig. 1 (eq. 3, 10, 12).
+    FourElement,
+    /// Four-element in series with ratchet || kp (Fig. 2, eqs. 1-2).
+    Flory,
+}
+
+impl LawKind {
+    /// The law the paper uses for a rope: four-element when the rope has the
+    /// visco-elastic constants, elastic otherwise.
+    pub fn default_for(params: &RopeParams) -> Self {
+        if params.has_four_element() {
+            Self::FourElement
+        } else {
+            Self::Elastic
+        }
+    }
+
+    /// Lower-case name as used in files.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Elastic => "elastic",
+            Self::FourElement => "four_element",
+            Self::Flory => "flory",
+        }
+    }
+}
+
+/// A retarded-elasticity element: spring `k` parallel to dashpot `c` (per unit strain).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct KelvinElement {
+    /// Spring [N].
+    pub k_n: f64,
+    /// Dashpot [N*s].
+    pub c_n_s: f64,
+}
+
+/// Stress-dependent creep: the c2 dashpot's strain rate is
+/// `f / c2 * (1 + (f / tension_n)^exponent)`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct NonlinearCreep {
+    /// Tension at which the creep rate doubles [N].
+    pub tension_n: f64,
+    /// Exponent of the stress dependence (dimensionless, >= 1).
+    pub exponent: f64,
+}
+
+/// A rope constitutive law, per unit strain (multiply strains by the rope length).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RopeLaw {
+    /// Head spring k1 [N]: its tangent stiffness is `k1 * (1 + stiffening_per_n * f)`.
+    pub k1_n: f64,
+    /// Dashpot parallel to the head spring (internal damping) [N*s]; 0 = none.
+    pub c1_n_s: f64,
+    /// Creep dashpot c2 [N*s]; `None` = no creep.
+    pub c2_n_s: Option<f64>,
+    /// Kelvin elements in series (k3 || c3 of Fig. 1, and any added retardation).
+    pub kelvin: Vec<KelvinElement>,
+    /// Spring parallel to Flory's ratchet [N]; `None` = no plasticity.
+    pub kp_n: Option<f64>,
+    /// Relative stiffening of the head spring per newton of tension [1/N]; 0 = linear.
+    pub stiffening_per_n: f64,
+    /// Stress-dependent creep of the c2 dashpot; `None` = linear dashpot.
+    pub creep: Option<NonlinearCreep>,
+}
+
+impl RopeLaw {
+    /// `f = k1 * e`.
+    pub fn elastic(k1_n: f64) -> Self {
+        Self {
+            k1_n,
+            c1_n_s: 0.0,
+            c2_n_s: None,
+            kelvin: Vec::new(),
+            kp_n: None,
+            stiffening_per_n: 0.0,
+            creep: None,
+        }
+    }
+
+    /// The four-element (Burgers) model of Fig. 1.
+    pub fn four_element(k1_n: f64, c2_n_s: f64, k3_n: f64, c3_n_s: f64) -> Self {
+        Self {
+            c2_n_s: Some(c2_n_s),
+            kelvin: vec![KelvinElement {
+                k_n: k3_n,
+                c_n_s: c3_n_s,
+            }],
+            ..Self::elastic(k1_n)
+        }
+    }
+
+    /// Flory's model of Fig. 2: four-element in series with ratchet || kp.
+    pub fn flory(k1_n: f64, c2_n_s: f64, k3_n: f64, c3_n_s: f64, kp_n: f64) -> Self {
+        Self {
+            kp_n: Some(kp_n),
+            ..Self::four_element(k1_n, c2_n_s, k3_n, c3_n_s)
+        }
+    }
+
+    /// Builds a law of the given kind from catalog constants.
+    pub fn from_params(params: &RopeParams, kind: LawKind) -> Result<Self, RopeError> {
+        let missing = |key: &str, hint: &str| RopeError::MissingConstant {
+            rope: params.name.clone(),
+            law: kind.as_str().to_string(),
+            missing: key.to_string(),
+            hint: hint.to_string(),
+        };
+        let law = match kind {
+            LawKind::Elastic => Self::elastic(params.k1_n),
+            LawKind::FourElement | LawKind::Flory => {
+                let hint = "elastic ropes such as stainless1 use law = \"elastic\"";
+                let k3 = params.k3_n.ok_or_else(|| missing("k3", hint))?;
+                let c2 = params.c2_n_s.ok_or_else(|| missing("c2", hint))?;
+                let c3 = params.c3_n_s.ok_or_else(|| missing("c3", hint))?;
+                if kind == LawKind::Flory {
+                    let kp = params
+                        .kp_n
+                        .ok_or_else(|| missing("kp", "give kp (Table IV) or use four_element"))?;
+                    Self::flory(params.k1_n, c2, k3, c3, kp)
+                } else {
+                    Self::four_element(params.k1_n, c2, k3, c3)
+                }
+            }
+        };
+        law.validate()?;
+        Ok(law)
+    }
+
+    /// Checks every constant; says which one is wrong.
+    pub fn validate(&self) -> Result<(), RopeError> {
+        let bad = |field: &str, value: f64, reason: &str| {
+            Err(RopeError::BadParameter {
+                field: field.to_string(),
+                value,
+                reason: reason.to_string(),
+            })
+        };
+        let pos = "must be finite and > 0";
+        if !(self.k1_n.is_finite() && self.k1_n > 0.0) {
+            return bad("k1", self.k1_n, pos);
+        }
+        if !(self.c1_n_s.is_finite() && self.c1_n_s >= 0.0) {
+            return bad("c1", self.c1_n_s, "must be finite and >= 0 (0 = no internal damping)");
+        }
+        if let Some(c2) = self.c2_n_s {
+            if !(c2.is_finite() && c2 > 0.0) {
+                return bad("c2", c2, pos);
+            }
+        }
+        if self.kelvin.len() > MAX_KELVIN {
+            return bad(
+                "kelvin",
+                self.kelvin.len() as f64,
+                "at most 3 Kelvin elements are supported",
+            );
+        }
+        for el in &self.kelvin {
+            if !(el.k_n.is_finite() && el.k_n > 0.0) {
+                return bad("kelvin k", el.k_n, pos);
+            }
+            if !(el.c_n_s.is_finite() && el.c_n_s > 0.0) {
+                return bad("kelvin c", el.c_n_s, pos);
+            }
+        }
+        if let Some(kp) = self.kp_n {
+            if !(kp.is_finite() && kp > 0.0) {
+                return bad("kp", kp, pos);
+            }
+        }
+        if !(self.stiffening_per_n.is_finite() && self.stiffening_per_n >= 0.0) {
+            return bad(
+                "stiffening_per_n",
+                self.stiffening_per_n,
+                "must be finite and >= 0 (0 = linear spring)",
+            );
+        }
+        if let Some(c) = self.creep {
+            if self.c2_n_s.is_none() {
+                return bad(
+                    "creep",
+                    c.tension_n,
+                    "non-linear creep needs the c2 dashpot (a four-element or Flory law)",
+                );
+            }
+            if !(c.tension_n.is_finite() && c.tension_n > 0.0) {
+                return bad("creep tension_n", c.tension_n, pos);
+            }
+            if !(c.exponent.is_finite() && c.exponent >= 1.0) {
+                return bad("creep exponent", c.exponent, "must be finite and >= 1");
+            }
+        }
+        Ok(())
+    }
+
+    /// True when every element is linear (the end tension has a closed form).
+    pub fn is_linear(&self) -> bool {
+        self.stiffening_per_n == 0.0 && self.creep.is_none()
+    }
+
+    /// Strain of the head spring carrying tension `f` (inverse of the spring law).
+    pub fn head_strain(&self, tension_n: f64) -> f64 {
+        let f = tension_n.max(0.0);
+        let b = self.stiffening_per_n;
+        if b == 0.0 {
+            f / self.k1_n
+        } else {
+            (b * f).ln_1p() / (self.k1_n * b)
+        }
+    }
+
+    /// Tension of the head spring at strain `e1` (the spring alone, no dashpot).
+    pub fn head_tension(&self, e1: f64) -> f64 {
+        let e = e1.max(0.0);
+        let b = self.stiffening_per_n;
+        if b == 0.0 {
+            self.k1_n * e
+        } else {
+            (self.k1_n * b * e).exp_m1() / b
+        }
+    }
+
+    /// Tangent stiffness of the head spring at tension `f` [N per unit strain].
+    pub fn head_stiffness(&self, tension_n: f64) -> f64 {
+        self.k1_n * (1.0 + self.stiffening_per_n * tension_n.max(0.0))
+    }
+
+    /// Quasi-static strain of the rope held at tension `f` long enough for every Kelvin
+    /// element to settle (creep excluded: it never settles).
+    pub fn settled_strain(&self, tension_n: f64) -> f64 {
+        self.head_strain(tension_n)
+            + self
+                .kelvin
+                .iter()
+                .map(|k| tension_n / k.k_n)
+                .sum::<f64>()
+    }
+
+    /// Creep strain rate of the c2 dashpot at tension `f` [1/s].
+    fn creep_rate(&self, tension_n: f64) -> f64 {
+        match self.c2_n_s {
+            None => 0.0,
+            Some(c2) => {
+                let f = tension_n.max(0.0);
+                let nl = self
+                    .creep
+                    .map_or(0.0, |c| (f / c.tension_n).powf(c.exponent));
+                f / c2 * (1.0 + nl)
+            }
+        }
+    }
+
+    /// Derivative of [`Self::creep_rate`] with respect to tension.
+    fn creep_rate_slope(&self, tension_n: f64) -> f64 {
+        match self.c2_n_s {
+            None => 0.0,
+            Some(c2) => {
+                let f = tension_n.max(0.0);
+                let nl = self.creep.map_or(0.0, |c| {
+                    (c.exponent + 1.0) * (f / c.tension_n).powf(c.exponent)
+                });
+                (1.0 + nl) / c2
+            }
+        }
+    }
+}
+
+/// Mutable state of one rope (strains are per unit length).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct RopeState {
+    /// Tension at the end of the last step [N] (never negative).
+    pub tension_n: f64,
+    /// Total strain imposed at the end of the last step.
+    pub strain: f64,
+    /// Head-spring strain (only a state when the head has internal damping).
+    pub e1: f64,
+    /// Creep (c2 dashpot) strain.
+    pub e2: f64,
+    /// Kelvin element strains.
+    pub e3: [f64; MAX_KELVIN],
+    /// Plastic strain held by the ratchet.
+    pub ep: f64,
+    /// Largest tension seen [N].
+    pub peak_tension_n: f64,
+}
+
+impl RopeState {
+    /// Natural (unstretched) strain of the rope: below it the rope is slack.
+    pub fn natural_strain(&self) -> f64 {
+        self.e2 + self.e3.iter().sum::<f64>() + self.ep
+    }
+
+    /// True when the rope carried no tension at the end of the last step.
+    pub fn is_slack(&self) -> bool {
+        self.tension_n <= 0.0
+    }
+}
+
+/// Hold weights of one Kelvin element over a step: `e1 = a*e0 + b0*f0 + b1*f1`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Hold {
+    a: f64,
+    b0: f64,
+    b1: f64,
+}
+
+impl Hold {
+    /// Exact solution of `k e + c de/dt = f(t)` over `h` with `f` linear in time.
+    fn kelvin(k: f64, c: f64, h: f64) -> Self {
+        let x = h * k / c;
+        let a = (-x).exp();
+        // phi = (1 - a) / x and one_minus_phi = 1 - phi, by series where they cancel.
+        let (phi, one_minus_phi) = if x < 1e-3 {
+            let omp = x / 2.0 - x * x / 6.0 + x * x * x / 24.0 - x.powi(4) / 120.0;
+            (1.0 - omp, omp)
+        } else {
+            let phi = -(-x).exp_m1() / x;
+            (phi, 1.0 - phi)
+        };
+        Self {
+            a,
+            b0: (phi - a) / k,
+            b1: one_minus_phi / k,
+        }
+    }
+}
+
+/// A law compiled for one time step: the hold weights are computed once.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RopeStepper {
+    law: RopeLaw,
+    dt_s: f64,
+    kelvin: [Hold; MAX_KELVIN],
+    n_kelvin: usize,
+    /// Weights of the head when it has internal damping (a Kelvin element k1 || c1).
+    head_hold: Option<Hold>,
+    linear: bool,
+}
+
+/// What one step needs from the state at its start: the end tension is a monotone
+/// function of the end strain, `rest + compliance*f + nonlinear(f) + ep(f) = e`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PreparedStep {
+    /// Strain of every element at zero end tension, plastic strain excluded.
+    rest: f64,
+    /// Linear compliance of the step [1/N].
+    compliance: f64,
+    /// Tension above which the ratchet slides (`kp * ep`), infinite without one.
+    yield_n: f64,
+    /// Plastic strain at the start.
+    ep0: f64,
+    /// Tension at the start.
+    f0: f64,
+}
+
+impl PreparedStep {
+    /// Strain at or below which the rope is slack at the end of the step.
+    pub fn slack_strain(&self) -> f64 {
+        self.rest + self.ep0
+    }
+}
+
+impl RopeStepper {
+    /// Compiles `law` for steps of `dt_s` seconds.
+    pub fn new(law: RopeLaw, dt_s: f64) -> Result<Self, RopeError> {
+        if !(dt_s.is_finite() && dt_s > 0.0 && dt_s <= 1.0) {
+            return Err(RopeError::BadTimeStep { dt_s });
+        }
+        law.validate()?;
+        let mut kelvin = [Hold::default(); MAX_KELVIN];
+        for (slot, el) in kelvin.iter_mut().zip(&law.kelvin) {
+            *slot = Hold::kelvin(el.k_n, el.c_n_s, dt_s);
+        }
+        let head_hold = (law.c1_n_s > 0.0).then(|| Hold::kelvin(law.k1_n, law.c1_n_s, dt_s));
+        Ok(Self {
+            n_kelvin: law.kelvin.len(),
+            linear: law.is_linear(),
+            law,
+            dt_s,
+            kelvin,
+            head_hold,
+        })
+    }
+
+    /// The law this stepper integrates.
+    pub fn law(&self) -> &RopeLaw {
+        &self.law
+    }
+
+    /// Step [s].
+    pub fn dt_s(&self) -> f64 {
+        self.dt_s
+    }
+
+    /// State of a rope that has rested at `tension_n` long enough for its Kelvin
+    /// elements to settle, after a pre-stretch to `prestretch_n` (which sets the
+    /// ratchet: `ep = max(prestretch, tension) / kp`, eq. 2). Creep strain starts at 0.
+    pub fn rest_state(&self, tension_n: f64, prestretch_n: f64) -> RopeState {
+        let f = tension_n.max(0.0);
+        let mut s = RopeState {
+            tension_n: f,
+            e1: self.law.head_strain(f),
+            peak_tension_n: f.max(prestretch_n),
+            ..RopeState::default()
+        };
+        for (e3, el) in s.e3.iter_mut().zip(&self.law.kelvin) {
+            *e3 = f / el.k_n;
+        }
+        if let Some(kp) = self.law.kp_n {
+            s.ep = f.max(prestretch_n.max(0.0)) / kp;
+        }
+        s.strain = s.e1 + s.natural_strain();
+        s
+    }
+
+    /// The state of eq. 5: strain `e0` applied instantly to a fresh rope
+    /// (`e1 = e0`, every other strain zero).
+    pub fn instant_strain_state(&self, strain: f64) -> RopeState {
+        let e1 = strain.max(0.0);
+        let f = self.law.head_tension(e1);
+        RopeState {
+            tension_n: f,
+            strain,
+            e1,
+            peak_tension_n: f,
+            ..RopeState::default()
+        }
+    }
+
+    /// Prepares the step that starts from `s`.
+    pub fn prepare(&self, s: &RopeState) -> PreparedStep {
+        let h = self.dt_s;
+        let f0 = s.tension_n;
+        let mut rest = s.e2 + 0.5 * h * self.law.creep_rate(f0);
+        let mut compliance = 0.0;
+        if self.law.c2_n_s.is_some() && self.law.creep.is_none() {
+            compliance += 0.5 * h * self.law.creep_rate_slope(0.0);
+        }
+        for (hold, e3) in self.kelvin[..self.n_kelvin].iter().zip(&s.e3) {
+            rest += hold.a * e3 + hold.b0 * f0;
+            compliance += hold.b1;
+        }
+        match self.head_hold {
+            Some(hold) => {
+                // Kelvin head k1 || c1, its spring linearised at the start tension.
+                let k = self.law.head_stiffness(f0);
+                let scaled = if k == self.law.k1_n {
+                    hold
+                } else {
+                    Hold::kelvin(k, self.law.c1_n_s, h)
+                };
+                rest += scaled.a * s.e1 + scaled.b0 * f0;
+                compliance += scaled.b1;
+            }
+            None if self.law.stiffening_per_n == 0.0 => compliance += 1.0 / self.law.k1_n,
+            None => {}
+        }
+        let yield_n = self.law.kp_n.map_or(f64::INFINITY, |kp| kp * s.ep);
+        PreparedStep {
+            rest,
+            compliance,
+            yield_n,
+            ep0: s.ep,
+            f0,
+        }
+    }
+
+    /// Strain-minus-target residual of the step at end tension `f`, and its slope.
+    fn residual(&self, p: &PreparedStep, f: f64, strain: f64) -> (f64, f64) {
+        let mut g = p.rest + p.compliance * f - strain;
+        let mut dg = p.compliance;
+        if self.head_hold.is_none() && self.law.stiffening_per_n > 0.0 {
+            g += self.law.head_strain(f);
+            dg += 1.0 / self.law.head_stiffness(f);
+        }
+        if self.law.creep.is_some() {
+            g += 0.5 * self.dt_s * self.law.creep_rate(f);
+            dg += 0.5 * self.dt_s * self.law.creep_rate_slope(f);
+        }
+        match self.law.kp_n {
+            Some(kp) if f > p.yield_n => {
+                g += f / kp;
+                dg += 1.0 / kp;
+            }
+            _ => g += p.ep0,
+        }
+        (g, dg)
+    }
+
+    /// End tension [N] and its slope d(tension)/d(strain) [N] for the end strain `strain`.
+    pub fn tension(&self, p: &PreparedStep, strain: f64) -> (f64, f64) {
+        if strain <= p.slack_strain() {
+            return (0.0, 0.0);
+        }
+        if self.linear {
+            let f = (strain - p.slack_strain()) / p.compliance;
+            if f <= p.yield_n {
+                return (f, 1.0 / p.compliance);
+            }
+            // The ratchet slides: the kp spring joins the chain (eq. 2).
+            let inv_kp = 1.0 / self.law.kp_n.unwrap_or(f64::INFINITY);
+            let c = p.compliance + inv_kp;
+            return ((strain - p.rest) / c, 1.0 / c);
+        }
+        self.solve_nonlinear(p, strain)
+    }
+
+    /// Safeguarded Newton on the monotone step residual.
+    fn solve_nonlinear(&self, p: &PreparedStep, strain: f64) -> (f64, f64) {
+        let (mut lo, mut hi) = (0.0_f64, p.f0.max(1.0));
+        while self.residual(p, hi, strain).0 < 0.0 {
+            hi *= 2.0;
+            if hi > 1e15 {
+                return (f64::NAN, 0.0);
+            }
+        }
+        let mut f = p.f0.clamp(lo, hi);
+        for _ in 0..100 {
+            let (g, dg) = self.residual(p, f, strain);
+            if g > 0.0 {
+                hi = f;
+            } else {
+                lo = f;
+            }
+            let mut next = f - g / dg;
+            if !(next > lo && next < hi) {
+                next = 0.5 * (lo + hi);
+            }
+            if (next - f).abs() <= 1e-13 * (1.0 + f.abs()) {
+                f = next;
+                break;
+            }
+            f = next;
+        }
+        let (_, dg) = self.residual(p, f, strain);
+        (f, 1.0 / dg)
+    }
+
+    /// Ends the step at `strain`: updates every element and returns the tension [N].
+    pub fn commit(&self, p: &PreparedStep, s: &mut RopeState, strain: f64) -> f64 {
+        let (f1, _) = self.tension(p, strain);
+        let f0 = p.f0;
+        let h = self.dt_s;
+        s.e2 += 0.5 * h * (self.law.creep_rate(f0) + self.law.creep_rate(f1));
+        for (e3, hold) in s.e3.iter_mut().zip(&self.kelvin[..self.n_kelvin]) {
+            *e3 = hold.a * *e3 + hold.b0 * f0 + hold.b1 * f1;
+        }
+        if let Some(kp) = self.law.kp_n {
+            if f1 > p.yield_n {
+                s.ep = f1 / kp;
+            }
+        }
+        s.e1 = if f1 > 0.0 {
+            strain - s.natural_strain()
+        } else {
+            match self.head_hold {
+                // A damped head relaxes like a Kelvin element while slack.
+                Some(hold) => hold.a * s.e1 + hold.b0 * f0,
+                None => 0.0,
+            }
+        };
+        s.tension_n = f1;
+        s.strain = strain;
+        s.peak_tension_n = s.peak_tension_n.max(f1);
+        f1
+    }
+
+    /// Steps the rope through an imposed strain history, one sample per step,
+    /// returning the tension after each step.
+    pub fn run_strain_history(
+        &self,
+        state: &mut RopeState,
+        strains: &[f64],
+    ) -> Result<Vec<f64>, RopeError> {
+        let mut out = Vec::with_capacity(strains.len());
+        for &e in strains {
+            let p = self.prepare(state);
+            let f = self.commit(&p, state, e);
+            if !f.is_finite() {
+                return Err(RopeError::NonFinite {
+                    what: "tension",
+                    value: f,
+                    strain: e,
+                });
+            }
+            out.push(f);
+        }
+        Ok(out)
+    }
+
+    /// Elastic energy stored in the springs of a rope of `length_m` [J] (head spring and
+    /// Kelvin springs; the ratchet's locked strain stores none that can be returned).
+    pub fn stored_energy_j(&self, s: &RopeState, length_m: f64) -> f64 {
+        let e1 = s.e1.max(0.0);
+        let b = self.law.stiffening_per_n;
+        let head = if b == 0.0 {
+            0.5 * self.law.k1_n * e1 * e1
+        } else {
+            let k = self.law.k1_n;
+            (k * b * e1).exp_m1() / (k * b * b) - e1 / b
+        };
+        let kelvin: f64 = self
+            .law
+            .kelvin
+            .iter()
+            .zip(&s.e3)
+            .map(|(el, e)| 0.5 * el.k_n * e * e)
+            .sum();
+        length_m * (head + kelvin)
+    }
+}
