@@ -1,0 +1,17 @@
+//! Cable-pulley transmissions of longreach: the paper's 1-DoF rig (Figs. 7-8, eqs. 9-11)
+//! as a time-stepped plant with a constant-force tensioner, the input histories that
+//! drive it, its analytic transfer functions (eqs. 12-13) and its simulated frequency
+//! response. No physics engine: ropes come from [`longreach_rope`].
+
+mod error;
+pub mod freq;
+mod rig;
+pub mod signal;
+pub mod sweep;
+pub mod tf;
+
+pub use error::DriveError;
+pub use rig::{RigModel, RigSpec, RigState, Tensioner};
+pub use signal::{InputSignal, SineStep, SteppedSine};
+pub use sweep::{FrequencyPoint, RigTrace};
+pub use tf::{rig_resonance, rig_transfer, Resonance};
