@@ -1,0 +1,42 @@
+//! `longreach`: simulate long-reach arms driven by cable-pulley transmissions with
+//! synthetic fiber ropes, and compare the model with measurements.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod bode;
+mod output;
+mod ropes;
+
+/// Long-reach robot arms driven through synthetic-fiber and steel ropes: simulate,
+/// sweep, compare with measurements.
+#[derive(Debug, Parser)]
+#[command(name = "longreach", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Frequency response of the cable-pulley rig: analytic (eqs. 12-13) and simulated.
+    Bode(bode::BodeArgs),
+    /// List the rope catalog (the paper's constants).
+    Ropes(ropes::RopesArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Bode(args) => bode::run(&args),
+        Command::Ropes(args) => ropes::run(&args),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}
