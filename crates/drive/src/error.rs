@@ -19,7 +19,9 @@ pub enum DriveError {
         reason: String,
     },
     /// The simulation produced a non-finite or runaway state.
-    #[error("numerical blow-up at t = {time_s:.6} s: {what}; reduce dt_s or check the rig constants")]
+    #[error(
+        "numerical blow-up at t = {time_s:.6} s: {what}; reduce dt_s or check the rig constants"
+    )]
     BlowUp {
         /// Simulation time.
         time_s: f64,

@@ -230,8 +230,12 @@ impl RigModel {
         let two_t = 2.0 * s.mean_tension_n;
         let constant_force = s.tensioner == Tensioner::ConstantForce;
         let eval = |phi: f64, x: f64| {
-            let (f1, k1) = self.stepper.tension(&prep[0], self.strain(0, x, input_rad, phi));
-            let (f2, k2) = self.stepper.tension(&prep[1], self.strain(1, x, input_rad, phi));
+            let (f1, k1) = self
+                .stepper
+                .tension(&prep[0], self.strain(0, x, input_rad, phi));
+            let (f2, k2) = self
+                .stepper
+                .tension(&prep[1], self.strain(1, x, input_rad, phi));
             (f1, f2, k1 / l, k2 / l)
         };
 
@@ -313,8 +317,12 @@ impl RigModel {
     fn carriage_for(&self, prep: &[PreparedStep; 2], theta: f64, phi: f64) -> f64 {
         let target = 2.0 * self.spec.mean_tension_n;
         let sum = |x: f64| -> (f64, f64) {
-            let (f1, k1) = self.stepper.tension(&prep[0], self.strain(0, x, theta, phi));
-            let (f2, k2) = self.stepper.tension(&prep[1], self.strain(1, x, theta, phi));
+            let (f1, k1) = self
+                .stepper
+                .tension(&prep[0], self.strain(0, x, theta, phi));
+            let (f2, k2) = self
+                .stepper
+                .tension(&prep[1], self.strain(1, x, theta, phi));
             (f1 + f2 - target, (k1 + k2) / self.spec.rope_length_m)
         };
         let mut lo = self.first_taut_stretch(prep, theta, phi);
@@ -362,8 +370,14 @@ impl RigModel {
             } else {
                 self.rest_stretch_m
             };
-            let f1 = self.stepper.tension(&prep[0], self.strain(0, x, theta, phi)).0;
-            let f2 = self.stepper.tension(&prep[1], self.strain(1, x, theta, phi)).0;
+            let f1 = self
+                .stepper
+                .tension(&prep[0], self.strain(0, x, theta, phi))
+                .0;
+            let f2 = self
+                .stepper
+                .tension(&prep[1], self.strain(1, x, theta, phi))
+                .0;
             (inertial(phi) - r2 * (f1 - f2), x)
         };
         // The residual grows at least as fast as k_dyn * phi: bracket with that slope.

@@ -166,7 +166,8 @@ impl InputSignal {
                 // Steps are contiguous: find the one holding t (the last one past the end).
                 let idx = steps.partition_point(|s| s.end_s <= t).min(steps.len() - 1);
                 let s = &steps[idx];
-                sine.amplitude_rad * (s.start_phase_rad + TAU * s.frequency_hz * (t - s.start_s)).sin()
+                sine.amplitude_rad
+                    * (s.start_phase_rad + TAU * s.frequency_hz * (t - s.start_s)).sin()
             }
             Self::Step {
                 amplitude_rad,

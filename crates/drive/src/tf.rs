@@ -20,7 +20,10 @@ pub fn rope_compliance(law: &RopeLaw, s: Complex64, tension_n: f64) -> Complex64
     if let Some(c2) = law.c2_n_s {
         let slope = match law.creep {
             None => 1.0 / c2,
-            Some(c) => (1.0 + (c.exponent + 1.0) * (tension_n.max(0.0) / c.tension_n).powf(c.exponent)) / c2,
+            Some(c) => {
+                (1.0 + (c.exponent + 1.0) * (tension_n.max(0.0) / c.tension_n).powf(c.exponent))
+                    / c2
+            }
         };
         j += (s / slope).inv();
     }
@@ -43,7 +46,10 @@ pub fn rig_transfer(spec: &RigSpec, frequency_hz: f64) -> Complex64 {
 /// Gain [dB] and phase [deg, in (-360, 0] for a lag] of a complex ratio.
 pub fn gain_phase(g: Complex64) -> (f64, f64) {
     let phase = g.arg().to_degrees();
-    (20.0 * g.norm().log10(), if phase > 0.0 { phase - 360.0 } else { phase })
+    (
+        20.0 * g.norm().log10(),
+        if phase > 0.0 { phase - 360.0 } else { phase },
+    )
 }
 
 /// A resonance: the frequency of the gain's maximum and the gain there.

@@ -185,7 +185,11 @@ impl RopeLaw {
             return bad("k1", self.k1_n, pos);
         }
         if !(self.c1_n_s.is_finite() && self.c1_n_s >= 0.0) {
-            return bad("c1", self.c1_n_s, "must be finite and >= 0 (0 = no internal damping)");
+            return bad(
+                "c1",
+                self.c1_n_s,
+                "must be finite and >= 0 (0 = no internal damping)",
+            );
         }
         if let Some(c2) = self.c2_n_s {
             if !(c2.is_finite() && c2 > 0.0) {
@@ -272,12 +276,7 @@ impl RopeLaw {
     /// Quasi-static strain of the rope held at tension `f` long enough for every Kelvin
     /// element to settle (creep excluded: it never settles).
     pub fn settled_strain(&self, tension_n: f64) -> f64 {
-        self.head_strain(tension_n)
-            + self
-                .kelvin
-                .iter()
-                .map(|k| tension_n / k.k_n)
-                .sum::<f64>()
+        self.head_strain(tension_n) + self.kelvin.iter().map(|k| tension_n / k.k_n).sum::<f64>()
     }
 
     /// Creep strain rate of the c2 dashpot at tension `f` [1/s].

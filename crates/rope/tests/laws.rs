@@ -40,7 +40,10 @@ fn relaxation_max_rel_error(law: &RopeLaw, dt_s: f64, duration_s: f64) -> f64 {
 fn catalog_holds_the_papers_five_ropes() {
     let c = Catalog::builtin();
     let names: Vec<&str> = c.names().collect();
-    assert_eq!(names, ["dyneema2", "kevlar2", "stainless1", "vectran2", "zylon2"]);
+    assert_eq!(
+        names,
+        ["dyneema2", "kevlar2", "stainless1", "vectran2", "zylon2"]
+    );
     let d = c.get("Dyneema2").unwrap();
     assert_eq!(d.k1_n, 7.29e4);
     assert_eq!(d.c2_n_s, Some(1.65e7));
@@ -51,7 +54,10 @@ fn catalog_holds_the_papers_five_ropes() {
 #[test]
 fn unknown_rope_names_the_known_ones() {
     let err = Catalog::builtin().get("nylon").unwrap_err().to_string();
-    assert!(err.contains("nylon") && err.contains("dyneema2") && err.contains("inline"), "{err}");
+    assert!(
+        err.contains("nylon") && err.contains("dyneema2") && err.contains("inline"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -59,7 +65,10 @@ fn bad_catalog_text_names_the_file_and_key() {
     let err = Catalog::from_toml_str("[x]\ntensile_strength_n = 1.0\nk1 = -3.0\n", "my.toml")
         .unwrap_err()
         .to_string();
-    assert!(err.contains("my.toml") && err.contains("k1") && err.contains("-3"), "{err}");
+    assert!(
+        err.contains("my.toml") && err.contains("k1") && err.contains("-3"),
+        "{err}"
+    );
     let err = Catalog::from_toml_str("[x]\ntensile_strength_n = 1.0\nk1 = \"a\"\n", "my.toml")
         .unwrap_err()
         .to_string();
@@ -98,7 +107,10 @@ fn relaxation_is_accurate_at_every_step_size() {
         for dt in [1e-2, 1e-3, 1e-4] {
             let err = relaxation_max_rel_error(&law, dt, 20.0);
             assert!(err < 2e-4, "{name}: dt {dt}: {err:e}");
-            assert!(err < prev / 50.0 || err < 1e-11, "{name}: dt {dt}: {err:e} vs {prev:e}");
+            assert!(
+                err < prev / 50.0 || err < 1e-11,
+                "{name}: dt {dt}: {err:e} vs {prev:e}"
+            );
             prev = err;
         }
         // The smallest step of the range: bounded and finite over a short run.
@@ -146,8 +158,14 @@ fn sine_response_matches_the_complex_compliance() {
         let phase = im.atan2(re);
         let gain_exact = (m_re * m_re + m_im * m_im).sqrt();
         let phase_exact = m_im.atan2(m_re);
-        assert!(((gain - gain_exact) / gain_exact).abs() < 2e-4, "{name}: {gain} vs {gain_exact}");
-        assert!((phase - phase_exact).abs() < 2e-4, "{name}: {phase} vs {phase_exact}");
+        assert!(
+            ((gain - gain_exact) / gain_exact).abs() < 2e-4,
+            "{name}: {gain} vs {gain_exact}"
+        );
+        assert!(
+            (phase - phase_exact).abs() < 2e-4,
+            "{name}: {phase} vs {phase_exact}"
+        );
     }
 }
 
@@ -165,28 +183,44 @@ fn flory_ratchet_follows_eqs_1_and_2() {
     let stepper = RopeStepper::new(law, 1e-3).unwrap();
     let mut s = stepper.rest_state(0.0, 0.0);
     let ramp = |from: f64, to: f64| -> Vec<f64> {
-        (1..=200).map(|i| from + (to - from) * i as f64 / 200.0).collect()
+        (1..=200)
+            .map(|i| from + (to - from) * i as f64 / 200.0)
+            .collect()
     };
     let e_peak = 0.02;
-    let f = stepper.run_strain_history(&mut s, &ramp(0.0, e_peak)).unwrap();
+    let f = stepper
+        .run_strain_history(&mut s, &ramp(0.0, e_peak))
+        .unwrap();
     let f_peak = *f.last().unwrap();
     // eq. 1-2: e_peak = f/k1 + f/kp
     let expect = e_peak / (1.0 / d.k1_n + 1.0 / kp);
-    assert!(((f_peak - expect) / expect).abs() < 1e-12, "{f_peak} vs {expect}");
+    assert!(
+        ((f_peak - expect) / expect).abs() < 1e-12,
+        "{f_peak} vs {expect}"
+    );
     assert!(((s.ep - f_peak / kp) / s.ep).abs() < 1e-12);
     let ep_after_first = s.ep;
     // Unload to slack: the plastic strain stays.
-    let f = stepper.run_strain_history(&mut s, &ramp(e_peak, 0.0)).unwrap();
+    let f = stepper
+        .run_strain_history(&mut s, &ramp(e_peak, 0.0))
+        .unwrap();
     assert_eq!(*f.last().unwrap(), 0.0);
     assert_eq!(s.ep, ep_after_first);
     // Slack until the strain passes ep, then the k1 slope alone (the ratchet is locked).
     let e_reload = ep_after_first + 0.8 * f_peak / d.k1_n;
-    let f = stepper.run_strain_history(&mut s, &ramp(0.0, e_reload)).unwrap();
+    let f = stepper
+        .run_strain_history(&mut s, &ramp(0.0, e_reload))
+        .unwrap();
     assert_eq!(s.ep, ep_after_first, "ep grew below the previous peak");
     let f_reload = *f.last().unwrap();
-    assert!(((f_reload - 0.8 * f_peak) / f_peak).abs() < 1e-12, "{f_reload}");
+    assert!(
+        ((f_reload - 0.8 * f_peak) / f_peak).abs() < 1e-12,
+        "{f_reload}"
+    );
     // Past the previous peak the ratchet slides again: ep = new peak / kp.
-    let f = stepper.run_strain_history(&mut s, &ramp(e_reload, 0.03)).unwrap();
+    let f = stepper
+        .run_strain_history(&mut s, &ramp(e_reload, 0.03))
+        .unwrap();
     let f_new = *f.last().unwrap();
     assert!(f_new > f_peak);
     assert!(((s.ep - f_new / kp) / s.ep).abs() < 1e-12);
@@ -227,12 +261,18 @@ fn slack_rope_never_pushes_and_its_elements_behave() {
     assert_eq!(f, 0.0);
     let (e2, ep, e3_0) = (s.e2, s.ep, s.e3[0]);
     let n = 2000;
-    let f = stepper.run_strain_history(&mut s, &vec![natural - 0.01; n]).unwrap();
+    let f = stepper
+        .run_strain_history(&mut s, &vec![natural - 0.01; n])
+        .unwrap();
     assert!(f.iter().all(|&x| x == 0.0));
     assert_eq!(s.e2, e2);
     assert_eq!(s.ep, ep);
     let expect = e3_0 * (-(d.k3_n.unwrap() / d.c3_n_s.unwrap()) * n as f64 * dt).exp();
-    assert!(((s.e3[0] - expect) / expect).abs() < 1e-12, "{} vs {expect}", s.e3[0]);
+    assert!(
+        ((s.e3[0] - expect) / expect).abs() < 1e-12,
+        "{} vs {expect}",
+        s.e3[0]
+    );
     // Tension comes back exactly when the strain exceeds the natural length the rope
     // will have at the end of the next step (its Kelvin element keeps relaxing).
     let p = stepper.prepare(&s);
@@ -281,11 +321,16 @@ fn nonlinear_creep_matches_its_closed_form() {
     let e0 = 0.01;
     let mut s = stepper.instant_strain_state(e0);
     let f0 = k1 * e0;
-    let f = stepper.run_strain_history(&mut s, &vec![e0; 50_000]).unwrap();
+    let f = stepper
+        .run_strain_history(&mut s, &vec![e0; 50_000])
+        .unwrap();
     for (i, &fi) in f.iter().enumerate().step_by(997) {
         let q = (-k1 / c2 * (i + 1) as f64 * dt).exp();
         let exact = fc * f0 * q / (fc + f0 * (1.0 - q));
-        assert!(((fi - exact) / exact).abs() < 1e-6, "step {i}: {fi} vs {exact}");
+        assert!(
+            ((fi - exact) / exact).abs() < 1e-6,
+            "step {i}: {fi} vs {exact}"
+        );
     }
 }
 
@@ -305,7 +350,9 @@ fn extra_kelvin_element_settles_to_its_static_strain() {
     assert!((s.e3[1] - 400.0 / 3e5).abs() < 1e-18);
     // Holding that strain, the only motion left is creep: tension decays at f/c2 * k_eff.
     let mut s2 = s;
-    let f = stepper.run_strain_history(&mut s2, &[s.strain; 10]).unwrap();
+    let f = stepper
+        .run_strain_history(&mut s2, &[s.strain; 10])
+        .unwrap();
     assert!(f[9] < 400.0 && f[9] > 399.9, "{}", f[9]);
 }
 
