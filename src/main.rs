@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod batch_cmd;
 mod bode;
 mod output;
 mod ropes;
@@ -24,6 +25,10 @@ enum Command {
     Bode(bode::BodeArgs),
     /// List the rope catalog (the paper's constants).
     Ropes(ropes::RopesArgs),
+    /// Run a batch of scenarios (axes over a base scenario) into one results table.
+    Batch(batch_cmd::BatchArgs),
+    /// Join the tables of shard runs into the table of the whole batch.
+    Merge(batch_cmd::MergeArgs),
 }
 
 fn main() -> ExitCode {
@@ -31,6 +36,8 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Bode(args) => bode::run(&args),
         Command::Ropes(args) => ropes::run(&args),
+        Command::Batch(args) => batch_cmd::run(&args),
+        Command::Merge(args) => batch_cmd::merge_run(&args),
     };
     match result {
         Ok(code) => code,

@@ -3,6 +3,7 @@
 //! drive it, its analytic transfer functions (eqs. 12-13) and its simulated frequency
 //! response. No physics engine: ropes come from [`longreach_rope`].
 
+pub mod effects;
 mod error;
 pub mod freq;
 mod rig;

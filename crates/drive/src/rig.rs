@@ -23,7 +23,7 @@
 //! angle and carriage position solve the implicit equations by Newton's method on
 //! the piecewise-smooth rope tensions, with a bracketed fallback.
 
-use longreach_rope::{PreparedStep, RopeLaw, RopeState, RopeStepper};
+use longreach_rope::{Piece, PreparedStep, RopeLaw, RopeState, RopeStepper};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{non_negative, positive, DriveError};
@@ -112,6 +112,12 @@ pub struct RigModel {
     /// Carriage stretch at rest [m].
     rest_stretch_m: f64,
     rest_rope: RopeState,
+    /// 1 / L [1/m].
+    inv_length_per_m: f64,
+    /// 2 / dt and 4 / dt^2, and the trapezoidal rule's dynamic stiffness 4 I/dt^2 + 2 C/dt.
+    two_over_h: f64,
+    four_over_h2: f64,
+    k_dyn: f64,
 }
 
 /// Mutable state of a rig.
@@ -145,6 +151,16 @@ impl RigState {
     }
 }
 
+/// Rope tensions and slopes at one trial end state.
+struct Eval {
+    f: [f64; 2],
+    /// d(tension)/d(stretch) [N/m].
+    k: [f64; 2],
+    e: [f64; 2],
+    affine: bool,
+    pieces: [Piece; 2],
+}
+
 /// Sign of the differential stretch for rope `i`.
 const SIGN: [f64; 2] = [1.0, -1.0];
 
@@ -163,6 +179,11 @@ impl RigModel {
         let stepper = RopeStepper::new(spec.law.clone(), dt_s)?;
         let rest_rope = stepper.rest_state(spec.mean_tension_n, spec.prestretch_n);
         Ok(Self {
+            inv_length_per_m: 1.0 / spec.rope_length_m,
+            two_over_h: 2.0 / dt_s,
+            four_over_h2: 4.0 / (dt_s * dt_s),
+            k_dyn: 4.0 * spec.output_inertia_kg_m2 / (dt_s * dt_s)
+                + 2.0 * spec.output_damping_n_m_s / dt_s,
             rest_stretch_m: rest_rope.strain * spec.rope_length_m,
             rest_rope,
             stepper,
@@ -202,18 +223,19 @@ impl RigModel {
     /// Strain of rope `i` for carriage stretch `x`, input `theta`, output `phi`.
     fn strain(&self, i: usize, x: f64, theta: f64, phi: f64) -> f64 {
         let s = &self.spec;
-        (x + SIGN[i] * (s.input_radius_m * theta - s.output_radius_m * phi)) / s.rope_length_m
+        (x + SIGN[i] * (s.input_radius_m * theta - s.output_radius_m * phi)) * self.inv_length_per_m
     }
 
     /// Advances one step with the input angle `input_rad` at the end of the step.
     pub fn step(&self, st: &mut RigState, input_rad: f64) -> Result<(), DriveError> {
         let s = &self.spec;
         let h = self.dt_s;
-        let (i_out, c_out, r2, l) = (
+        let (i_out, c_out, r2, l, inv_l) = (
             s.output_inertia_kg_m2,
             s.output_damping_n_m_s,
             s.output_radius_m,
             s.rope_length_m,
+            self.inv_length_per_m,
         );
         let prep = [
             self.stepper.prepare(&st.ropes[0]),
@@ -221,35 +243,46 @@ impl RigModel {
         ];
         let (phi0, w0, a0) = (st.output_rad, st.output_rate_rad_s, st.output_accel_rad_s2);
         // Trapezoidal rule: w1 = 2(phi1-phi0)/h - w0, a1 = 4(phi1-phi0)/h^2 - 4 w0/h - a0.
-        let k_dyn = 4.0 * i_out / (h * h) + 2.0 * c_out / h;
+        let (k_dyn, two_h, four_h2) = (self.k_dyn, self.two_over_h, self.four_over_h2);
         let inertial = |phi: f64| {
-            let a1 = 4.0 * (phi - phi0) / (h * h) - 4.0 * w0 / h - a0;
-            let w1 = 2.0 * (phi - phi0) / h - w0;
+            let a1 = four_h2 * (phi - phi0) - two_h * 2.0 * w0 - a0;
+            let w1 = two_h * (phi - phi0) - w0;
             i_out * a1 + c_out * w1
         };
         let two_t = 2.0 * s.mean_tension_n;
         let constant_force = s.tensioner == Tensioner::ConstantForce;
         let eval = |phi: f64, x: f64| {
-            let (f1, k1) = self
-                .stepper
-                .tension(&prep[0], self.strain(0, x, input_rad, phi));
-            let (f2, k2) = self
-                .stepper
-                .tension(&prep[1], self.strain(1, x, input_rad, phi));
-            (f1, f2, k1 / l, k2 / l)
+            let e = [
+                self.strain(0, x, input_rad, phi),
+                self.strain(1, x, input_rad, phi),
+            ];
+            let (f1, k1, p1) = self.stepper.tension_piece(&prep[0], e[0]);
+            let (f2, k2, p2) = self.stepper.tension_piece(&prep[1], e[1]);
+            Eval {
+                f: [f1, f2],
+                k: [k1 * inv_l, k2 * inv_l],
+                e,
+                affine: p1 != Piece::Nonlinear && p2 != Piece::Nonlinear,
+                pieces: [p1, p2],
+            }
         };
 
+        // Predictor, then Newton. On piecewise-affine laws one Newton step is exact when
+        // no rope changes piece; the evaluation at the new point confirms it.
         let mut phi = phi0 + h * w0 + 0.5 * h * h * a0;
         let mut x = st.carriage_m;
+        let mut ev = eval(phi, x);
         let mut converged = false;
         for _ in 0..40 {
-            let (f1, f2, k1, k2) = eval(phi, x);
+            let [f1, f2] = ev.f;
+            let [k1, k2] = ev.k;
             let res_m = inertial(phi) - r2 * (f1 - f2);
             let d11 = k_dyn + r2 * r2 * (k1 + k2);
             let (dphi, dx) = if constant_force {
                 if k1 + k2 == 0.0 {
                     // Both ropes slack: the carriage takes up the slack first.
                     x = self.first_taut_stretch(&prep, input_rad, phi) + 1e-12 * l;
+                    ev = eval(phi, x);
                     continue;
                 }
                 let res_t = f1 + f2 - two_t;
@@ -265,20 +298,30 @@ impl RigModel {
             };
             phi += dphi;
             x += dx;
-            if dphi.abs() <= 1e-14 * (1.0 + phi.abs()) && dx.abs() <= 1e-16 * (1.0 + x.abs()) {
+            let next = eval(phi, x);
+            let same_piece = next.affine && ev.affine && next.pieces == ev.pieces;
+            ev = next;
+            if same_piece
+                || (dphi.abs() <= 1e-14 * (1.0 + phi.abs()) && dx.abs() <= 1e-16 * (1.0 + x.abs()))
+            {
                 converged = true;
                 break;
             }
         }
-        if !converged {
+        if converged {
+            for i in 0..2 {
+                self.stepper
+                    .commit_with_tension(&prep[i], &mut st.ropes[i], ev.e[i], ev.f[i]);
+            }
+        } else {
             (phi, x) = self.solve_bracketed(&prep, input_rad, &inertial, k_dyn)?;
+            for i in 0..2 {
+                let e = self.strain(i, x, input_rad, phi);
+                self.stepper.commit(&prep[i], &mut st.ropes[i], e);
+            }
         }
-        for i in 0..2 {
-            let e = self.strain(i, x, input_rad, phi);
-            self.stepper.commit(&prep[i], &mut st.ropes[i], e);
-        }
-        let w1 = 2.0 * (phi - phi0) / h - w0;
-        let a1 = 4.0 * (phi - phi0) / (h * h) - 4.0 * w0 / h - a0;
+        let w1 = two_h * (phi - phi0) - w0;
+        let a1 = four_h2 * (phi - phi0) - two_h * 2.0 * w0 - a0;
         st.time_s += h;
         st.input_rad = input_rad;
         st.output_rad = phi;

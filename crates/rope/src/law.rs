@@ -378,6 +378,26 @@ pub struct RopeStepper {
     /// Weights of the head when it has internal damping (a Kelvin element k1 || c1).
     head_hold: Option<Hold>,
     linear: bool,
+    /// Linear laws: the step's constant compliance [1/N], its inverse, and the inverse
+    /// with the ratchet's kp spring added (plastic flow).
+    compliance: f64,
+    inv_compliance: f64,
+    inv_plastic_compliance: f64,
+    /// dt / (2 c2), 0 without creep.
+    half_h_over_c2: f64,
+}
+
+/// Which piece of a rope law holds at the end of a step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Piece {
+    /// No tension.
+    Slack,
+    /// Taut, ratchet locked: tension affine in strain (linear laws).
+    Elastic,
+    /// Taut, ratchet sliding: tension affine in strain with kp in the chain.
+    Plastic,
+    /// A non-linear element is active: no affine piece.
+    Nonlinear,
 }
 
 /// What one step needs from the state at its start: the end tension is a monotone
@@ -415,9 +435,18 @@ impl RopeStepper {
             *slot = Hold::kelvin(el.k_n, el.c_n_s, dt_s);
         }
         let head_hold = (law.c1_n_s > 0.0).then(|| Hold::kelvin(law.k1_n, law.c1_n_s, dt_s));
+        let half_h_over_c2 = law.c2_n_s.map_or(0.0, |c2| 0.5 * dt_s / c2);
+        let compliance = half_h_over_c2
+            + kelvin[..law.kelvin.len()].iter().map(|k| k.b1).sum::<f64>()
+            + head_hold.map_or(1.0 / law.k1_n, |h| h.b1);
+        let inv_kp = law.kp_n.map_or(0.0, |kp| 1.0 / kp);
         Ok(Self {
             n_kelvin: law.kelvin.len(),
             linear: law.is_linear(),
+            compliance,
+            inv_compliance: 1.0 / compliance,
+            inv_plastic_compliance: 1.0 / (compliance + inv_kp),
+            half_h_over_c2,
             law,
             dt_s,
             kelvin,
@@ -474,6 +503,23 @@ impl RopeStepper {
     pub fn prepare(&self, s: &RopeState) -> PreparedStep {
         let h = self.dt_s;
         let f0 = s.tension_n;
+        let yield_n = self.law.kp_n.map_or(f64::INFINITY, |kp| kp * s.ep);
+        if self.linear {
+            let mut rest = s.e2 + self.half_h_over_c2 * f0;
+            for (hold, e3) in self.kelvin[..self.n_kelvin].iter().zip(&s.e3) {
+                rest += hold.a * e3 + hold.b0 * f0;
+            }
+            if let Some(hold) = self.head_hold {
+                rest += hold.a * s.e1 + hold.b0 * f0;
+            }
+            return PreparedStep {
+                rest,
+                compliance: self.compliance,
+                yield_n,
+                ep0: s.ep,
+                f0,
+            };
+        }
         let mut rest = s.e2 + 0.5 * h * self.law.creep_rate(f0);
         let mut compliance = 0.0;
         if self.law.c2_n_s.is_some() && self.law.creep.is_none() {
@@ -487,7 +533,7 @@ impl RopeStepper {
             Some(hold) => {
                 // Kelvin head k1 || c1, its spring linearised at the start tension.
                 let k = self.law.head_stiffness(f0);
-                let scaled = if k == self.law.k1_n {
+                let scaled = if self.law.stiffening_per_n == 0.0 {
                     hold
                 } else {
                     Hold::kelvin(k, self.law.c1_n_s, h)
@@ -498,7 +544,6 @@ impl RopeStepper {
             None if self.law.stiffening_per_n == 0.0 => compliance += 1.0 / self.law.k1_n,
             None => {}
         }
-        let yield_n = self.law.kp_n.map_or(f64::INFINITY, |kp| kp * s.ep);
         PreparedStep {
             rest,
             compliance,
@@ -532,20 +577,32 @@ impl RopeStepper {
 
     /// End tension [N] and its slope d(tension)/d(strain) [N] for the end strain `strain`.
     pub fn tension(&self, p: &PreparedStep, strain: f64) -> (f64, f64) {
+        let (f, k, _) = self.tension_piece(p, strain);
+        (f, k)
+    }
+
+    /// Like [`Self::tension`], plus which piece of the law holds: [`Piece::Slack`],
+    /// [`Piece::Elastic`], [`Piece::Plastic`] (linear laws, on which the tension is affine
+    /// in the strain) or [`Piece::Nonlinear`].
+    #[inline]
+    pub fn tension_piece(&self, p: &PreparedStep, strain: f64) -> (f64, f64, Piece) {
         if strain <= p.slack_strain() {
-            return (0.0, 0.0);
+            return (0.0, 0.0, Piece::Slack);
         }
         if self.linear {
-            let f = (strain - p.slack_strain()) / p.compliance;
+            let f = (strain - p.slack_strain()) * self.inv_compliance;
             if f <= p.yield_n {
-                return (f, 1.0 / p.compliance);
+                return (f, self.inv_compliance, Piece::Elastic);
             }
             // The ratchet slides: the kp spring joins the chain (eq. 2).
-            let inv_kp = 1.0 / self.law.kp_n.unwrap_or(f64::INFINITY);
-            let c = p.compliance + inv_kp;
-            return ((strain - p.rest) / c, 1.0 / c);
+            return (
+                (strain - p.rest) * self.inv_plastic_compliance,
+                self.inv_plastic_compliance,
+                Piece::Plastic,
+            );
         }
-        self.solve_nonlinear(p, strain)
+        let (f, k) = self.solve_nonlinear(p, strain);
+        (f, k, Piece::Nonlinear)
     }
 
     /// Safeguarded Newton on the monotone step residual.
@@ -582,9 +639,25 @@ impl RopeStepper {
     /// Ends the step at `strain`: updates every element and returns the tension [N].
     pub fn commit(&self, p: &PreparedStep, s: &mut RopeState, strain: f64) -> f64 {
         let (f1, _) = self.tension(p, strain);
+        self.commit_with_tension(p, s, strain, f1)
+    }
+
+    /// Ends the step at `strain` whose tension `f1` the caller already has from
+    /// [`Self::tension`] with the same prepared step.
+    pub fn commit_with_tension(
+        &self,
+        p: &PreparedStep,
+        s: &mut RopeState,
+        strain: f64,
+        f1: f64,
+    ) -> f64 {
         let f0 = p.f0;
         let h = self.dt_s;
-        s.e2 += 0.5 * h * (self.law.creep_rate(f0) + self.law.creep_rate(f1));
+        s.e2 += if self.law.creep.is_none() {
+            self.half_h_over_c2 * (f0 + f1)
+        } else {
+            0.5 * h * (self.law.creep_rate(f0) + self.law.creep_rate(f1))
+        };
         for (e3, hold) in s.e3.iter_mut().zip(&self.kelvin[..self.n_kelvin]) {
             *e3 = hold.a * *e3 + hold.b0 * f0 + hold.b1 * f1;
         }

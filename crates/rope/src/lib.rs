@@ -25,7 +25,7 @@ mod relaxation;
 pub use catalog::{Catalog, RopeParams, BUILTIN_CATALOG_TOML};
 pub use error::RopeError;
 pub use law::{
-    KelvinElement, LawKind, NonlinearCreep, PreparedStep, RopeLaw, RopeState, RopeStepper,
+    KelvinElement, LawKind, NonlinearCreep, Piece, PreparedStep, RopeLaw, RopeState, RopeStepper,
     MAX_KELVIN,
 };
 pub use relaxation::{relaxation_tension_n, rms_error};

@@ -1,4 +1,5 @@
 //! Rope laws against closed forms and the paper's relations.
+#![allow(clippy::float_cmp)] // exact equality is the point: held strains must not move by one ulp
 
 use longreach_rope::{
     relaxation_tension_n, Catalog, KelvinElement, LawKind, NonlinearCreep, RopeError, RopeLaw,

@@ -1,6 +1,7 @@
 //! Scenario files of longreach (TOML, serde): parsing, validation with errors that name
 //! the file, line, field and fix, and compilation into runnable models.
 
+pub mod batch;
 pub mod bode;
 mod error;
 pub mod locate;

@@ -1,0 +1,65 @@
+//! Rig benchmarks (issue: rope laws and rig): one rig step with four-element ropes, the
+//! same with elastic ropes (the MuJoCo anchor's rope), and the whole 49-392 N Dyneema2
+//! bode scenario. Run: `cargo bench --bench rig`.
+
+use std::hint::black_box;
+use std::path::Path;
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+
+use longreach_drive::{RigModel, RigSpec};
+use longreach_rope::{Catalog, LawKind, RopeLaw};
+use longreach_scenario::BodeScenario;
+
+fn rig(rope: &str, law: LawKind, damping: f64) -> RigModel {
+    let params = Catalog::builtin().get(rope).unwrap().clone();
+    let law = RopeLaw::from_params(&params, law).unwrap();
+    RigModel::new(RigSpec::paper(rope, law, damping, 147.0), 1e-3).unwrap()
+}
+
+fn bench_step(c: &mut Criterion) {
+    let mut group = c.benchmark_group("rig_step");
+    const STEPS: u64 = 10_000;
+    group.throughput(Throughput::Elements(STEPS));
+    for (name, model) in [
+        (
+            "four_element_dyneema2",
+            rig("dyneema2", LawKind::FourElement, 0.05),
+        ),
+        // The MuJoCo anchor's rig: stainless (elastic), C = 0.01, 4.5 deg at 3.17 Hz.
+        (
+            "elastic_stainless1",
+            rig("stainless1", LawKind::Elastic, 0.01),
+        ),
+    ] {
+        let amp = 4.5f64.to_radians();
+        let w = std::f64::consts::TAU * 3.17;
+        group.bench_function(name, |b| {
+            let mut st = model.rest_state();
+            let mut i = 0u64;
+            b.iter(|| {
+                for _ in 0..STEPS {
+                    i += 1;
+                    let theta = amp * (w * i as f64 * 1e-3).sin();
+                    model.step(&mut st, black_box(theta)).unwrap();
+                }
+                black_box(st.output_rad)
+            })
+        });
+    }
+    group.finish();
+}
+
+fn bench_scenario(c: &mut Criterion) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/bode_dyneema2.toml");
+    let scenario = BodeScenario::from_file(&path).unwrap();
+    let mut group = c.benchmark_group("bode_scenario");
+    group.sample_size(10);
+    group.bench_function("dyneema2_49_to_392_n_one_thread", |b| {
+        b.iter(|| black_box(scenario.run_all().unwrap()))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench_step, bench_scenario);
+criterion_main!(benches);

@@ -1,0 +1,30 @@
+//! longreach-arm: URDF arms as rapier3d-f64 multibodies, plus independent rigid-body
+//! dynamics for checks and gravity feed-forward.
+//!
+//! - [`urdf`]: URDF file -> validated [`ArmSpec`] (fixed joints merged, unsupported
+//!   content listed in [`ArmSpec::warnings`]).
+//! - [`multibody`]: [`ArmModel`] (immutable) / [`ArmData`] (mutable) and [`step`].
+//! - [`dynamics`]: recursive Newton-Euler on the spec: [`gravity_torques`],
+//!   [`energy`], mass matrix, inverse and forward dynamics.
+//! - [`generate`]: [`chain_urdf`], uniform planar chains for benchmarks.
+
+pub mod command;
+pub mod dynamics;
+pub mod error;
+pub mod fast;
+pub mod generate;
+pub mod multibody;
+pub mod spec;
+pub mod system;
+pub mod transmission;
+pub mod urdf;
+
+pub use dynamics::{energy, gravity_torques, Energy};
+pub use error::ArmError;
+pub use generate::chain_urdf;
+pub use multibody::{step, ArmData, ArmModel, ModelOptions};
+pub use command::Command;
+pub use system::{DrivenArm, DrivenState, StaticPair, SystemEnergy};
+pub use transmission::{MotorMode, MotorSpec, PairSpec, Relay, RoutingMatrix, TensionerKind};
+pub use spec::{ArmSpec, Element, Frame, Inertial, JointKind, JointSpec, LinkSpec, SpecError};
+pub use urdf::{load_urdf, parse_urdf, UrdfError};

@@ -1,0 +1,791 @@
+//! The driven arm: links + rope pairs + motors + servos, integrated together in
+//! reduced coordinates with an implicit, energy-consistent scheme.
+//!
+//! # Equations
+//!
+//! ```text
+//! M(q) qdd + C(q, qd) qd + g(q) + D qd = R^T phi                 (arm, phi_p = n_p (f+ - f-))
+//! J_m thdd_p + b_m thd_p = tau_servo,p - r_m phi_p                (motor p)
+//! f+- = rope law of strain (x_p +- u_p) / L_p,  u_p = r_m th_p - R[p] . q
+//! f+ + f- = 2 T_p                                                 (constant-force tensioner)
+//! tau_servo = sat(kp (th_ref - th) + kd (thd_ref - thd) + r_m phi_static(q_ref))
+//! ```
+//!
+//! # Integration (why not rapier's step)
+//!
+//! rapier's multibody step is semi-implicit Euler with explicit joint forces: with
+//! ropes of 10^5..10^6 N/m on 25 mm pulleys it needs tiny steps and it loses energy
+//! at first order. Here every unknown of the step is implicit, exactly like the rig
+//! plant ([`longreach_drive::RigModel`]): the trapezoidal rule (Newmark average
+//! acceleration: unconditionally stable, second order, no numerical damping) for the
+//! joints and motors, the exact-hold step for each rope ([`RopeStepper`]), and Newton's
+//! method on the end-of-step state. The Newton matrix is
+//! `4 M(q0)/h^2 + 2 D/h + R^T K R` with the rope pairs' tangent stiffness `K`, the
+//! motor and tensioner unknowns eliminated pair by pair (Schur complement of 2x2
+//! blocks), so the linear solve is one `n x n` Cholesky. The residual is evaluated
+//! exactly at the trial state by recursive Newton-Euler (`M(q1) a1 + C(q1, v1) v1 +
+//! g(q1)`), so the converged step is the trapezoidal rule on the full nonlinear
+//! equations; freezing `M` in the matrix only costs an extra iteration.
+
+use crate::command::Command;
+use crate::error::ArmError;
+use crate::fast::{cholesky_in_place, cholesky_solve, FastDynamics, Kin};
+use crate::spec::ArmSpec;
+use crate::transmission::{CompiledPair, MotorMode, PairSpec, RoutingMatrix, TensionerKind};
+use longreach_rope::{PreparedStep, RopeState, RopeStepper};
+use nalgebra::{DMatrix, Vector3};
+
+/// A compiled driven arm (immutable; share it between runs).
+#[derive(Debug, Clone)]
+pub struct DrivenArm {
+    /// The arm.
+    pub spec: ArmSpec,
+    dynamics: FastDynamics,
+    /// The rope pairs, compiled for `dt_s`.
+    pub pairs: Vec<CompiledPair>,
+    /// Routing matrix (pairs x joints).
+    pub routing: RoutingMatrix,
+    /// Reference of every joint.
+    pub commands: Vec<Command>,
+    /// Initial joint angles, rad.
+    pub initial_q_rad: Vec<f64>,
+    dt_s: f64,
+    damping: Vec<f64>,
+    /// `phi = ff_map * g_driven`: inverse of `R^T` restricted to the driven joints.
+    ff_map: Vec<f64>,
+    /// Driven joint of each row of `ff_map`'s input.
+    driven: Vec<usize>,
+}
+
+/// Mutable state of a [`DrivenArm`] (and its scratch).
+#[derive(Debug, Clone)]
+pub struct DrivenState {
+    /// Time, s.
+    pub time_s: f64,
+    /// Joint angles, rad.
+    pub q_rad: Vec<f64>,
+    /// Joint rates, rad/s.
+    pub qd_rad_s: Vec<f64>,
+    /// Joint accelerations, rad/s^2.
+    pub qdd_rad_s2: Vec<f64>,
+    /// Joint references at `time_s`, rad.
+    pub q_ref_rad: Vec<f64>,
+    /// Motor angles (per pair), rad.
+    pub motor_rad: Vec<f64>,
+    /// Motor rates, rad/s.
+    pub motor_rate_rad_s: Vec<f64>,
+    /// Motor accelerations, rad/s^2.
+    pub motor_accel_rad_s2: Vec<f64>,
+    /// Motor references, rad.
+    pub motor_ref_rad: Vec<f64>,
+    /// Servo torques of the last step, N*m.
+    pub motor_torque_n_m: Vec<f64>,
+    /// Common stretch of each pair held by its tensioner, m.
+    pub carriage_m: Vec<f64>,
+    /// Rope states `[+, -]` of each pair (one rope of the `n` in parallel).
+    pub ropes: Vec<[RopeState; 2]>,
+    /// Newton iterations of the last step.
+    pub iterations: u32,
+    scratch: Scratch,
+}
+
+#[derive(Debug, Clone)]
+struct Scratch {
+    kin: Kin,
+    tau: Vec<f64>,
+    mbase: Vec<f64>,
+    kq: Vec<f64>,
+    rhs: Vec<f64>,
+    q1: Vec<f64>,
+    v1: Vec<f64>,
+    a1: Vec<f64>,
+    zero: Vec<f64>,
+    g: Vec<f64>,
+    /// Per pair: b11 b12 b21 b22 w0 w1 r0 r1.
+    local: Vec<[f64; 8]>,
+    prep: Vec<[PreparedStep; 2]>,
+}
+
+/// What the static map gives for one pair at a pose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StaticPair {
+    /// Pair force `n (f+ - f-)`, N.
+    pub phi_n: f64,
+    /// Tension of each `+` rope, N.
+    pub f_pos_n: f64,
+    /// Tension of each `-` rope, N.
+    pub f_neg_n: f64,
+    /// Differential stretch `u`, m.
+    pub u_m: f64,
+    /// Common stretch `x`, m.
+    pub x_m: f64,
+    /// False when the tensioner cannot hold this load (constant force below |phi|/2n).
+    pub holds: bool,
+}
+
+/// Energy of the driven arm, J.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SystemEnergy {
+    /// Links (and armatures).
+    pub links_kinetic_j: f64,
+    /// Gravity.
+    pub potential_j: f64,
+    /// Motor rotors.
+    pub motors_kinetic_j: f64,
+    /// Rope springs (every rope in parallel counted).
+    pub ropes_j: f64,
+    /// Constant-force tensioners, `-2 n T x`.
+    pub tensioners_j: f64,
+}
+
+impl SystemEnergy {
+    /// Sum of every term, J.
+    pub fn total_j(&self) -> f64 {
+        self.links_kinetic_j
+            + self.potential_j
+            + self.motors_kinetic_j
+            + self.ropes_j
+            + self.tensioners_j
+    }
+}
+
+fn bad(field: &str, reason: String) -> ArmError {
+    ArmError::BadTransmission {
+        field: field.to_string(),
+        reason,
+    }
+}
+
+impl DrivenArm {
+    /// Compiles the arm with its pairs and commands for steps of `dt_s`.
+    pub fn new(
+        spec: ArmSpec,
+        pairs: Vec<PairSpec>,
+        commands: Vec<Command>,
+        initial_q_rad: Vec<f64>,
+        dt_s: f64,
+    ) -> Result<Self, ArmError> {
+        spec.validate()?;
+        let n = spec.ndofs();
+        if !(dt_s.is_finite() && dt_s > 0.0 && dt_s <= 0.05) {
+            return Err(ArmError::BadTimeStep { dt_s });
+        }
+        crate::error::check_joint_vector(&spec.name, n, "initial_q_rad", &initial_q_rad)?;
+        if commands.len() != n {
+            return Err(bad(
+                "command",
+                format!("{} commands for {n} joints: give one per joint", commands.len()),
+            ));
+        }
+        let mut seen = vec![false; n];
+        let mut compiled = Vec::with_capacity(pairs.len());
+        for (i, p) in pairs.iter().enumerate() {
+            let jn = spec.joints.get(p.joint).map_or("?", |j| j.name.as_str());
+            let field = |f: &str| format!("transmission[{i}] (joint {jn}).{f}");
+            if p.joint >= n {
+                return Err(bad(&field("joint"), format!("joint index {} out of range", p.joint)));
+            }
+            if seen[p.joint] {
+                return Err(bad(
+                    &field("joint"),
+                    "a second transmission on the same joint: give one pair per joint".into(),
+                ));
+            }
+            seen[p.joint] = true;
+            for (what, v) in [
+                ("joint_radius_m", p.joint_radius_m),
+                ("motor_radius_m", p.motor_radius_m),
+                ("length_m", p.length_m),
+            ] {
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(bad(&field(what), format!("{v} must be finite and > 0")));
+                }
+            }
+            for (what, v) in [
+                ("preload_n", p.preload_n),
+                ("prestretch_n", p.prestretch_n),
+                ("motor.inertia_kg_m2", p.motor.inertia_kg_m2),
+                ("motor.damping_n_m_s", p.motor.damping_n_m_s),
+            ] {
+                if !(v.is_finite() && v >= 0.0) {
+                    return Err(bad(&field(what), format!("{v} must be finite and >= 0")));
+                }
+            }
+            if p.ropes_in_parallel == 0 {
+                return Err(bad(&field("ropes_in_parallel"), "must be at least 1".into()));
+            }
+            if p.tensioner == TensionerKind::ConstantForce && p.preload_n <= 0.0 {
+                return Err(bad(
+                    &field("preload_n"),
+                    "a constant-force tensioner needs a preload > 0".into(),
+                ));
+            }
+            if let MotorMode::Servo {
+                kp_n_m_per_rad,
+                kd_n_m_s_per_rad,
+                torque_limit_n_m,
+                ..
+            } = p.motor.mode
+            {
+                if p.motor.inertia_kg_m2 <= 0.0 {
+                    return Err(bad(
+                        &field("motor.inertia_kg_m2"),
+                        "a servo motor needs an inertia > 0 (or use mode = \"kinematic\")".into(),
+                    ));
+                }
+                for (what, v) in [
+                    ("motor.kp_n_m_per_rad", kp_n_m_per_rad),
+                    ("motor.kd_n_m_s_per_rad", kd_n_m_s_per_rad),
+                ] {
+                    if !(v.is_finite() && v >= 0.0) {
+                        return Err(bad(&field(what), format!("{v} must be finite and >= 0")));
+                    }
+                }
+                if torque_limit_n_m.is_nan() || torque_limit_n_m <= 0.0 {
+                    return Err(bad(
+                        &field("motor.torque_limit_n_m"),
+                        format!("{torque_limit_n_m} must be > 0"),
+                    ));
+                }
+            }
+            for r in &p.route {
+                if r.joint >= p.joint {
+                    return Err(bad(
+                        &field("route"),
+                        format!(
+                            "relay at joint index {} is not proximal to the driven joint {}",
+                            r.joint, p.joint
+                        ),
+                    ));
+                }
+                if !(r.radius_m.is_finite() && r.radius_m > 0.0) || r.sign.abs() != 1.0 {
+                    return Err(bad(
+                        &field("route"),
+                        format!(
+                            "relay radius {} m / sign {}: need radius > 0 and sign +1 or -1",
+                            r.radius_m, r.sign
+                        ),
+                    ));
+                }
+            }
+            let stepper = RopeStepper::new(p.law.clone(), dt_s)
+                .map_err(|e| bad(&field("rope"), e.to_string()))?;
+            let row = p.routing_row(n);
+            let nz = (0..n).filter(|&k| row[k] != 0.0).collect();
+            compiled.push(CompiledPair {
+                spec: p.clone(),
+                stepper,
+                row,
+                nz,
+                inv_length: 1.0 / p.length_m,
+                n: f64::from(p.ropes_in_parallel),
+            });
+        }
+        let routing = RoutingMatrix::new(&pairs, n);
+        // Feed-forward map: R^T phi = g on the driven joints.
+        let driven: Vec<usize> = compiled.iter().map(|p| p.spec.joint).collect();
+        let np = driven.len();
+        let mut rt = DMatrix::zeros(np, np);
+        for (a, &j) in driven.iter().enumerate() {
+            for b in 0..np {
+                rt[(a, b)] = compiled[b].row[j];
+            }
+        }
+        let ff_map = if np == 0 {
+            vec![]
+        } else {
+            let inv = rt.try_inverse().ok_or_else(|| {
+                bad(
+                    "route",
+                    "the routing matrix restricted to the driven joints is singular".into(),
+                )
+            })?;
+            let mut v = Vec::with_capacity(np * np);
+            for a in 0..np {
+                for b in 0..np {
+                    v.push(inv[(a, b)]);
+                }
+            }
+            v
+        };
+        Ok(Self {
+            dynamics: FastDynamics::new(&spec),
+            damping: spec.joints.iter().map(|j| j.damping_n_m_s_per_rad).collect(),
+            spec,
+            pairs: compiled,
+            routing,
+            commands,
+            initial_q_rad,
+            dt_s,
+            ff_map,
+            driven,
+        })
+    }
+
+    /// Step, s.
+    pub fn dt_s(&self) -> f64 {
+        self.dt_s
+    }
+
+    /// Turns gravity off (or sets another vector), m/s^2.
+    pub fn set_gravity(&mut self, g: Vector3<f64>) {
+        self.dynamics.set_gravity(g);
+        self.spec.gravity_m_s2 = g;
+    }
+
+    /// Sets the viscous damping of every joint, N*m*s/rad.
+    pub fn set_joint_damping(&mut self, d: f64) {
+        self.damping.fill(d);
+    }
+
+    fn make_scratch(&self) -> Scratch {
+        let n = self.spec.ndofs();
+        let np = self.pairs.len();
+        let prep0 = self.pairs.first().map(|p| {
+            let s = p.stepper.rest_state(0.0, 0.0);
+            p.stepper.prepare(&s)
+        });
+        Scratch {
+            kin: self.dynamics.make_kin(),
+            tau: vec![0.0; n],
+            mbase: vec![0.0; n * n],
+            kq: vec![0.0; n * n],
+            rhs: vec![0.0; n],
+            q1: vec![0.0; n],
+            v1: vec![0.0; n],
+            a1: vec![0.0; n],
+            zero: vec![0.0; n],
+            g: vec![0.0; n],
+            local: vec![[0.0; 8]; np],
+            prep: prep0.map_or_else(Vec::new, |p| vec![[p; 2]; np]),
+        }
+    }
+
+    /// Static pair forces, tensions and stretches that hold the arm at `q_rad` under
+    /// gravity (`R^T phi = g(q)` on the driven joints, split by the preload).
+    pub fn static_pairs(&self, q_rad: &[f64]) -> Vec<StaticPair> {
+        let mut kin = self.dynamics.make_kin();
+        let n = self.spec.ndofs();
+        let mut g = vec![0.0; n];
+        self.gravity_into(q_rad, &mut kin, &mut g);
+        (0..self.pairs.len())
+            .map(|p| self.static_pair(p, &g))
+            .collect()
+    }
+
+    fn gravity_into(&self, q: &[f64], kin: &mut Kin, g: &mut [f64]) {
+        let zero = vec![0.0; q.len()];
+        self.dynamics.kinematics(q, kin);
+        self.dynamics.rnea(kin, &zero, &zero, g);
+    }
+
+    /// Pair force of pair `p` from the gravity torques `g`.
+    fn phi_static(&self, p: usize, g: &[f64]) -> f64 {
+        let np = self.driven.len();
+        (0..np)
+            .map(|b| self.ff_map[p * np + b] * g[self.driven[b]])
+            .sum()
+    }
+
+    fn static_pair(&self, p: usize, g: &[f64]) -> StaticPair {
+        let pair = &self.pairs[p];
+        let phi = self.phi_static(p, g);
+        let t = pair.spec.preload_n;
+        let half = phi / (2.0 * pair.n);
+        let (mut fp, mut fm) = (t + half, t - half);
+        let mut holds = true;
+        if fm < 0.0 {
+            fm = 0.0;
+            fp = phi / pair.n;
+        } else if fp < 0.0 {
+            fp = 0.0;
+            fm = -phi / pair.n;
+        }
+        if pair.spec.tensioner == TensionerKind::ConstantForce && half.abs() > t {
+            holds = false;
+            fp = fp.min(2.0 * t);
+            fm = fm.min(2.0 * t);
+        }
+        let l = pair.spec.length_m;
+        let sp = pair.stepper.rest_state(fp, pair.spec.prestretch_n).strain * l;
+        let sm = pair.stepper.rest_state(fm, pair.spec.prestretch_n).strain * l;
+        StaticPair {
+            phi_n: pair.n * (fp - fm),
+            f_pos_n: fp,
+            f_neg_n: fm,
+            u_m: 0.5 * (sp - sm),
+            x_m: 0.5 * (sp + sm),
+            holds,
+        }
+    }
+
+    /// The arm at rest at its initial angles, held by the ropes against gravity, motors
+    /// at the angles that hold it.
+    pub fn initial_state(&self) -> DrivenState {
+        let n = self.spec.ndofs();
+        let np = self.pairs.len();
+        let mut st = DrivenState {
+            time_s: 0.0,
+            q_rad: self.initial_q_rad.clone(),
+            qd_rad_s: vec![0.0; n],
+            qdd_rad_s2: vec![0.0; n],
+            q_ref_rad: self.initial_q_rad.clone(),
+            motor_rad: vec![0.0; np],
+            motor_rate_rad_s: vec![0.0; np],
+            motor_accel_rad_s2: vec![0.0; np],
+            motor_ref_rad: vec![0.0; np],
+            motor_torque_n_m: vec![0.0; np],
+            carriage_m: vec![0.0; np],
+            ropes: vec![[RopeState::default(); 2]; np],
+            iterations: 0,
+            scratch: self.make_scratch(),
+        };
+        let statics = self.static_pairs(&self.initial_q_rad);
+        for (p, s) in statics.iter().enumerate() {
+            let pair = &self.pairs[p];
+            let rq: f64 = pair.row.iter().zip(&st.q_rad).map(|(a, b)| a * b).sum();
+            let th = (rq + s.u_m) / pair.spec.motor_radius_m;
+            st.motor_rad[p] = th;
+            st.motor_ref_rad[p] = th;
+            st.carriage_m[p] = s.x_m;
+            let mut rp = pair.stepper.rest_state(s.f_pos_n, pair.spec.prestretch_n);
+            let mut rm = pair.stepper.rest_state(s.f_neg_n, pair.spec.prestretch_n);
+            rp.strain = (s.x_m + s.u_m) * pair.inv_length;
+            rm.strain = (s.x_m - s.u_m) * pair.inv_length;
+            st.ropes[p] = [rp, rm];
+            st.motor_torque_n_m[p] = pair.spec.motor_radius_m * s.phi_n;
+        }
+        st
+    }
+
+    /// Energy of the state, J (see [`SystemEnergy`]).
+    pub fn energy(&self, st: &DrivenState) -> SystemEnergy {
+        let mut kin = self.dynamics.make_kin();
+        self.dynamics.kinematics(&st.q_rad, &mut kin);
+        let links_kinetic_j = self.dynamics.kinetic_energy(&mut kin, &st.qd_rad_s);
+        let potential_j = self.dynamics.potential_energy(&kin);
+        let mut motors = 0.0;
+        let mut ropes = 0.0;
+        let mut tens = 0.0;
+        for (p, pair) in self.pairs.iter().enumerate() {
+            let w = st.motor_rate_rad_s[p];
+            motors += 0.5 * pair.spec.motor.inertia_kg_m2 * w * w;
+            for r in &st.ropes[p] {
+                ropes += pair.n * pair.stepper.stored_energy_j(r, pair.spec.length_m);
+            }
+            if pair.spec.tensioner == TensionerKind::ConstantForce {
+                tens -= 2.0 * pair.n * pair.spec.preload_n * st.carriage_m[p];
+            }
+        }
+        SystemEnergy {
+            links_kinetic_j,
+            potential_j,
+            motors_kinetic_j: motors,
+            ropes_j: ropes,
+            tensioners_j: tens,
+        }
+    }
+
+    /// World position of the tip at `q_rad`, m.
+    pub fn tip_m(&self, q_rad: &[f64]) -> Vector3<f64> {
+        crate::dynamics::tip_position_m(&self.spec, q_rad).unwrap_or_else(|_| Vector3::zeros())
+    }
+
+    /// Joint torques the ropes exert at the state, `R^T phi`, N*m.
+    pub fn rope_joint_torques(&self, st: &DrivenState) -> Vec<f64> {
+        let phi: Vec<f64> = self
+            .pairs
+            .iter()
+            .enumerate()
+            .map(|(p, pair)| pair.n * (st.ropes[p][0].tension_n - st.ropes[p][1].tension_n))
+            .collect();
+        self.routing.transpose_apply(&phi)
+    }
+
+    /// Advances one step of `dt_s`.
+    pub fn step(&self, st: &mut DrivenState) -> Result<(), ArmError> {
+        let n = self.spec.ndofs();
+        let h = self.dt_s;
+        let t1 = st.time_s + h;
+        let (two_h, four_h2) = (2.0 / h, 4.0 / (h * h));
+        let mut sc = std::mem::replace(&mut st.scratch, self.make_scratch_light());
+
+        // References at the end of the step.
+        for j in 0..n {
+            st.q_ref_rad[j] = self.commands[j].angle_rad(self.initial_q_rad[j], t1);
+        }
+        let needs_ref = !self.pairs.is_empty();
+        if needs_ref {
+            self.dynamics.kinematics(&st.q_ref_rad, &mut sc.kin);
+            self.dynamics
+                .rnea(&mut sc.kin, &sc.zero, &sc.zero, &mut sc.g);
+        }
+        let mut ff = vec![0.0; self.pairs.len()];
+        let mut ref_rate = vec![0.0; self.pairs.len()];
+        for (p, pair) in self.pairs.iter().enumerate() {
+            let sp = self.static_pair(p, &sc.g);
+            let rq: f64 = pair.nz.iter().map(|&k| pair.row[k] * st.q_ref_rad[k]).sum();
+            let th = (rq + sp.u_m) / pair.spec.motor_radius_m;
+            let smooth = !matches!(self.commands[pair.spec.joint], Command::Step { .. });
+            ref_rate[p] = if smooth {
+                (th - st.motor_ref_rad[p]) / h
+            } else {
+                0.0
+            };
+            st.motor_ref_rad[p] = th;
+            ff[p] = pair.spec.motor_radius_m * sp.phi_n;
+            sc.prep[p] = [
+                pair.stepper.prepare(&st.ropes[p][0]),
+                pair.stepper.prepare(&st.ropes[p][1]),
+            ];
+        }
+
+        // Newton matrix base at q0.
+        self.dynamics.kinematics(&st.q_rad, &mut sc.kin);
+        self.dynamics.mass_matrix(&mut sc.kin, &mut sc.mbase);
+        for v in sc.mbase.iter_mut() {
+            *v *= four_h2;
+        }
+        for j in 0..n {
+            sc.mbase[j * n + j] += two_h * self.damping[j];
+        }
+
+        // Predictor.
+        for j in 0..n {
+            sc.q1[j] = st.q_rad[j] + h * st.qd_rad_s[j] + 0.5 * h * h * st.qdd_rad_s2[j];
+        }
+        let mut th1: Vec<f64> = self
+            .pairs
+            .iter()
+            .enumerate()
+            .map(|(p, pair)| match pair.spec.motor.mode {
+                MotorMode::Kinematic => st.motor_ref_rad[p],
+                MotorMode::Servo { .. } => {
+                    st.motor_rad[p]
+                        + h * st.motor_rate_rad_s[p]
+                        + 0.5 * h * h * st.motor_accel_rad_s2[p]
+                }
+            })
+            .collect();
+        let mut x1 = st.carriage_m.clone();
+        let mut torque = vec![0.0; self.pairs.len()];
+
+        let mut converged = false;
+        let mut iterations = 0;
+        for _ in 0..60 {
+            iterations += 1;
+            for j in 0..n {
+                let dq = sc.q1[j] - st.q_rad[j];
+                sc.v1[j] = two_h * dq - st.qd_rad_s[j];
+                sc.a1[j] = four_h2 * dq - 2.0 * two_h * st.qd_rad_s[j] - st.qdd_rad_s2[j];
+            }
+            self.dynamics.kinematics(&sc.q1, &mut sc.kin);
+            self.dynamics.rnea(&mut sc.kin, &sc.v1, &sc.a1, &mut sc.tau);
+            for j in 0..n {
+                sc.rhs[j] = -(sc.tau[j] + self.damping[j] * sc.v1[j]);
+            }
+            sc.kq.copy_from_slice(&sc.mbase);
+            let mut retry = false;
+            for (p, pair) in self.pairs.iter().enumerate() {
+                let s = &pair.spec;
+                let rm = s.motor_radius_m;
+                let rq: f64 = pair.nz.iter().map(|&k| pair.row[k] * sc.q1[k]).sum();
+                let u = rm * th1[p] - rq;
+                let x = x1[p];
+                let il = pair.inv_length;
+                let (fp, kp, _) = pair.stepper.tension_piece(&sc.prep[p][0], (x + u) * il);
+                let (fm, km, _) = pair.stepper.tension_piece(&sc.prep[p][1], (x - u) * il);
+                let (kp, km) = (kp * il, km * il);
+                let cf = s.tensioner == TensionerKind::ConstantForce;
+                if cf && kp + km == 0.0 {
+                    // Both ropes slack: the carriage takes up the slack first.
+                    let lp = sc.prep[p][0].slack_strain() * s.length_m - u;
+                    let lm = sc.prep[p][1].slack_strain() * s.length_m + u;
+                    x1[p] = lp.min(lm) + 1e-12 * s.length_m;
+                    retry = true;
+                    continue;
+                }
+                let nn = pair.n;
+                let phi = nn * (fp - fm);
+                let ku = nn * (kp + km);
+                let kx = nn * (kp - km);
+                let (su, sx) = (kp - km, kp + km);
+                // rhs = -r_q: r_q contains -R^T phi.
+                for &k in &pair.nz {
+                    sc.rhs[k] += pair.row[k] * phi;
+                }
+                let (servo, b11, r0) = match s.motor.mode {
+                    MotorMode::Kinematic => (0.0, 1.0, 0.0),
+                    MotorMode::Servo {
+                        kp_n_m_per_rad,
+                        kd_n_m_s_per_rad,
+                        torque_limit_n_m,
+                        gravity_feedforward,
+                    } => {
+                        let dth = th1[p] - st.motor_rad[p];
+                        let w1 = two_h * dth - st.motor_rate_rad_s[p];
+                        let a1 = four_h2 * dth - 2.0 * two_h * st.motor_rate_rad_s[p]
+                            - st.motor_accel_rad_s2[p];
+                        let raw = kp_n_m_per_rad * (st.motor_ref_rad[p] - th1[p])
+                            + kd_n_m_s_per_rad * (ref_rate[p] - w1)
+                            + if gravity_feedforward { ff[p] } else { 0.0 };
+                        let tq = raw.clamp(-torque_limit_n_m, torque_limit_n_m);
+                        torque[p] = tq;
+                        let dservo = if raw.abs() < torque_limit_n_m {
+                            kp_n_m_per_rad + two_h * kd_n_m_s_per_rad
+                        } else {
+                            0.0
+                        };
+                        let jm = s.motor.inertia_kg_m2;
+                        let bm = s.motor.damping_n_m_s;
+                        let r = jm * a1 + bm * w1 - tq + rm * phi;
+                        (
+                            1.0,
+                            four_h2 * jm + two_h * bm + dservo + rm * rm * ku,
+                            r,
+                        )
+                    }
+                };
+                let cfm = if cf { 1.0 } else { 0.0 };
+                let b12 = servo * cfm * rm * kx;
+                let b21 = servo * cfm * su * rm;
+                let b22 = if cf { sx } else { 1.0 };
+                let r1 = if cf { fp + fm - 2.0 * s.preload_n } else { 0.0 };
+                let w = [servo * rm * ku, cfm * su];
+                let z = [servo * ku * rm, cfm * kx];
+                let det = b11 * b22 - b12 * b21;
+                // B^-1 = [b22 -b12; -b21 b11] / det
+                let binv = |v: [f64; 2]| {
+                    [
+                        (b22 * v[0] - b12 * v[1]) / det,
+                        (-b21 * v[0] + b11 * v[1]) / det,
+                    ]
+                };
+                let bw = binv(w);
+                let br = binv([r0, r1]);
+                let beta = z[0] * bw[0] + z[1] * bw[1];
+                let gamma = z[0] * br[0] + z[1] * br[1];
+                let keff = ku - beta;
+                for &a in &pair.nz {
+                    let ra = pair.row[a];
+                    sc.rhs[a] -= ra * gamma;
+                    for &b in &pair.nz {
+                        sc.kq[a * n + b] += keff * ra * pair.row[b];
+                    }
+                }
+                sc.local[p] = [b11, b12, b21, b22, w[0], w[1], r0, r1];
+            }
+            if retry {
+                continue;
+            }
+            if !cholesky_in_place(&mut sc.kq, n) {
+                st.scratch = sc;
+                return Err(ArmError::BlowUp {
+                    time_s: t1,
+                    detail: "the Newton matrix of the step is not positive definite".into(),
+                });
+            }
+            cholesky_solve(&sc.kq, n, &mut sc.rhs);
+            let mut small = true;
+            for j in 0..n {
+                let d = sc.rhs[j];
+                sc.q1[j] += d;
+                if d.abs() > 1e-12 * (1.0 + sc.q1[j].abs()) {
+                    small = false;
+                }
+            }
+            for (p, pair) in self.pairs.iter().enumerate() {
+                let [b11, b12, b21, b22, w0, w1, r0, r1] = sc.local[p];
+                let rdq: f64 = pair.nz.iter().map(|&k| pair.row[k] * sc.rhs[k]).sum();
+                let v = [-r0 + w0 * rdq, -r1 + w1 * rdq];
+                let det = b11 * b22 - b12 * b21;
+                let d0 = (b22 * v[0] - b12 * v[1]) / det;
+                let d1 = (-b21 * v[0] + b11 * v[1]) / det;
+                if matches!(pair.spec.motor.mode, MotorMode::Servo { .. }) {
+                    th1[p] += d0;
+                    if d0.abs() > 1e-12 * (1.0 + th1[p].abs()) {
+                        small = false;
+                    }
+                }
+                if pair.spec.tensioner == TensionerKind::ConstantForce {
+                    x1[p] += d1;
+                    if d1.abs() > 1e-15 * (1.0 + pair.spec.length_m) {
+                        small = false;
+                    }
+                }
+            }
+            if small {
+                converged = true;
+                break;
+            }
+        }
+        if !converged {
+            st.scratch = sc;
+            return Err(ArmError::BlowUp {
+                time_s: t1,
+                detail: format!("the implicit step did not converge in {iterations} Newton iterations"),
+            });
+        }
+        // Commit.
+        for (p, pair) in self.pairs.iter().enumerate() {
+            let rq: f64 = pair.nz.iter().map(|&k| pair.row[k] * sc.q1[k]).sum();
+            let u = pair.spec.motor_radius_m * th1[p] - rq;
+            let x = x1[p];
+            for (side, sign) in [(0usize, 1.0), (1usize, -1.0)] {
+                let e = (x + sign * u) * pair.inv_length;
+                let (f, _, _) = pair.stepper.tension_piece(&sc.prep[p][side], e);
+                pair.stepper
+                    .commit_with_tension(&sc.prep[p][side], &mut st.ropes[p][side], e, f);
+            }
+            let dth = th1[p] - st.motor_rad[p];
+            let w1 = two_h * dth - st.motor_rate_rad_s[p];
+            let a1 = four_h2 * dth - 2.0 * two_h * st.motor_rate_rad_s[p] - st.motor_accel_rad_s2[p];
+            st.motor_rad[p] = th1[p];
+            st.motor_rate_rad_s[p] = w1;
+            st.motor_accel_rad_s2[p] = a1;
+            st.carriage_m[p] = x;
+            st.motor_torque_n_m[p] = torque[p];
+        }
+        for j in 0..n {
+            let dq = sc.q1[j] - st.q_rad[j];
+            let v1 = two_h * dq - st.qd_rad_s[j];
+            let a1 = four_h2 * dq - 2.0 * two_h * st.qd_rad_s[j] - st.qdd_rad_s2[j];
+            st.q_rad[j] = sc.q1[j];
+            st.qd_rad_s[j] = v1;
+            st.qdd_rad_s2[j] = a1;
+        }
+        st.time_s = t1;
+        st.iterations = iterations;
+        st.scratch = sc;
+        let finite = st.q_rad.iter().chain(&st.qd_rad_s).all(|v| v.is_finite())
+            && st.motor_rad.iter().all(|v| v.is_finite())
+            && st.ropes.iter().flatten().all(|r| r.tension_n.is_finite());
+        if !finite || st.qd_rad_s.iter().any(|v| v.abs() > 1e4) {
+            return Err(ArmError::BlowUp {
+                time_s: t1,
+                detail: format!(
+                    "joint angles {:?} rad, rates {:?} rad/s",
+                    st.q_rad, st.qd_rad_s
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    fn make_scratch_light(&self) -> Scratch {
+        Scratch {
+            kin: Kin::empty(),
+            tau: vec![],
+            mbase: vec![],
+            kq: vec![],
+            rhs: vec![],
+            q1: vec![],
+            v1: vec![],
+            a1: vec![],
+            zero: vec![],
+            g: vec![],
+            local: vec![],
+            prep: vec![],
+        }
+    }
+}

@@ -1,0 +1,73 @@
+//! Shared helpers for the integration tests.
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+
+/// Path of a file under the workspace `robots/` folder.
+pub fn robot_path(rel: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../robots")
+        .join(rel)
+}
+
+/// A 3D test arm exercising every frame feature: joint origins with rpy, tilted and
+/// negative axes, rotated inertial frames, off-axis centres of mass, a fixed child with
+/// mass (merged), and a tip frame.
+pub const TWISTED_URDF: &str = r#"<?xml version="1.0"?>
+<robot name="twisted">
+  <link name="base"/>
+  <link name="a">
+    <inertial>
+      <origin xyz="0.1 0.05 0.3" rpy="0.2 -0.1 0.4"/>
+      <mass value="3.0"/>
+      <inertia ixx="0.05" ixy="0.004" ixz="-0.002" iyy="0.04" iyz="0.003" izz="0.03"/>
+    </inertial>
+  </link>
+  <link name="b">
+    <inertial>
+      <origin xyz="0.4 -0.02 0.01" rpy="-0.3 0.5 0.1"/>
+      <mass value="2.0"/>
+      <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.08" iyz="0" izz="0.085"/>
+    </inertial>
+  </link>
+  <link name="b_weight">
+    <inertial>
+      <origin xyz="0.02 0.03 0" rpy="0 0 0.7"/>
+      <mass value="0.7"/>
+      <inertia ixx="0.002" ixy="0" ixz="0" iyy="0.003" iyz="0" izz="0.004"/>
+    </inertial>
+  </link>
+  <link name="c">
+    <inertial>
+      <origin xyz="0.25 0.03 -0.04" rpy="0.9 0.2 -0.6"/>
+      <mass value="1.2"/>
+      <inertia ixx="0.004" ixy="0.0005" ixz="0" iyy="0.02" iyz="0" izz="0.021"/>
+    </inertial>
+  </link>
+  <link name="tip"/>
+  <joint name="yaw" type="continuous">
+    <parent link="base"/><child link="a"/>
+    <origin xyz="0 0 0.2" rpy="0 0 0.3"/>
+    <axis xyz="0 0 1"/>
+  </joint>
+  <joint name="pitch" type="revolute">
+    <parent link="a"/><child link="b"/>
+    <origin xyz="0.05 0 0.5" rpy="0.4 -0.2 0.1"/>
+    <axis xyz="0 -1 0"/>
+    <limit lower="-3" upper="3" effort="100" velocity="2"/>
+  </joint>
+  <joint name="weight_fixed" type="fixed">
+    <parent link="b"/><child link="b_weight"/>
+    <origin xyz="0.6 0.05 -0.02" rpy="0.3 0.2 0.1"/>
+  </joint>
+  <joint name="tilt" type="continuous">
+    <parent link="b"/><child link="c"/>
+    <origin xyz="0.7 0 0" rpy="0 0.3 -0.5"/>
+    <axis xyz="0.3 0.8 -0.2"/>
+  </joint>
+  <joint name="tip_fixed" type="fixed">
+    <parent link="c"/><child link="tip"/>
+    <origin xyz="0.5 0 0"/>
+  </joint>
+</robot>
+"#;

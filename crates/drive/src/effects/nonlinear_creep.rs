@@ -1,0 +1,65 @@
+//! Stress-dependent creep.
+
+use longreach_rope::{NonlinearCreep, RopeLaw};
+
+use super::{check, DataKind, Effect, EffectParam};
+use crate::{DriveError, RigSpec};
+
+/// The creep dashpot c2 flows faster under high tension.
+#[derive(Debug)]
+pub struct NonlinearCreepEffect;
+
+const PARAMS: &[EffectParam] = &[
+    EffectParam {
+        name: "tension_n",
+        unit: "N",
+        default: 500.0,
+        lower: 10.0,
+        upper: 1e5,
+        log_scale: true,
+    },
+    EffectParam {
+        name: "exponent",
+        unit: "1",
+        default: 2.0,
+        lower: 1.0,
+        upper: 6.0,
+        log_scale: false,
+    },
+];
+
+impl Effect for NonlinearCreepEffect {
+    fn name(&self) -> &'static str {
+        "nonlinear_creep"
+    }
+    fn doc(&self) -> &'static str {
+        "Creep of polyethylene fibres (Dyneema) is thermally activated and grows faster \
+         than linearly with stress. The creep dashpot's rate becomes \
+         f/c2 (1 + (f/f_c)^n): at tensions well below f_c it is the paper's linear c2, \
+         above it the rope creeps (and relaxes) much faster. A relaxation test then drops \
+         quickly at first and slows down as the tension falls, which a linear c2 cannot \
+         follow. Invisible on the rig, whose test lasts too short for c2 to act."
+    }
+    fn params(&self) -> &'static [EffectParam] {
+        PARAMS
+    }
+    fn applies_to(&self, kind: DataKind) -> bool {
+        kind != DataKind::SineSweep
+    }
+    fn present_in(&self, law: &RopeLaw) -> bool {
+        law.creep.is_some() || law.c2_n_s.is_none()
+    }
+    fn apply(
+        &self,
+        values: &[f64],
+        law: &mut RopeLaw,
+        _rig: Option<&mut RigSpec>,
+    ) -> Result<(), DriveError> {
+        check(self, values)?;
+        law.creep = Some(NonlinearCreep {
+            tension_n: values[0],
+            exponent: values[1],
+        });
+        Ok(law.validate()?)
+    }
+}
