@@ -19,9 +19,10 @@ use parquet::file::writer::SerializedFileWriter;
 use parquet::schema::types::Type;
 
 use longreach_scenario::batch::{
-    merge, run_scenarios, Batch, Cell, CellKind, Header, Journal, Row, RunOptions, Shard, Status,
-    Table,
+    builtin_kinds, merge, one_line, run_scenarios, Batch, Cell, CellKind, Header, Journal, Outcome,
+    Row, RowError, RunOptions, ScenarioKind, ScenarioTree, Shard, Status, Table,
 };
+use longreach_scenario::ScenarioError;
 
 use crate::output::{write_atomic, write_atomic_with};
 
@@ -64,9 +65,91 @@ pub struct MergeArgs {
     pub shards: Vec<PathBuf>,
 }
 
+/// The scenario kinds a batch may run: register a new kind here (one line).
+fn kinds() -> Vec<Arc<dyn ScenarioKind>> {
+    let mut kinds = builtin_kinds();
+    kinds.push(Arc::new(ArmKind));
+    kinds
+}
+
+/// The long-reach arm (`longreach run` scenarios: `[arm]`, `[sim]`, transmissions).
+///
+/// Metrics: `tip_error_m`; per joint `<joint>_settling_time_s`, `_overshoot_pct`,
+/// `_residual_vibration_rad`, `_final_error_rad`; per rope pair (by driven joint)
+/// `<joint>_peak_tension_n`, `_min_tension_n`, `_slack_events`, `_safety_factor`,
+/// `_static_safety_factor`.
+#[derive(Debug)]
+struct ArmKind;
+
+impl ScenarioKind for ArmKind {
+    fn name(&self) -> &'static str {
+        "arm"
+    }
+
+    fn detect(&self, tree: &ScenarioTree) -> bool {
+        tree.contains_key("arm")
+    }
+
+    fn check(&self, text: &str, file: &str, dir: &Path) -> Result<(), ScenarioError> {
+        longreach_arm::scenario::parse(text, file, dir).map(|_| ())
+    }
+
+    fn run(
+        &self,
+        text: &str,
+        file: &str,
+        dir: &Path,
+        keep_output: bool,
+    ) -> std::result::Result<Outcome, RowError> {
+        let sc = longreach_arm::scenario::parse(text, file, dir)
+            .map_err(|e| RowError::Invalid(one_line(&e)))?;
+        let (_, m) = longreach_arm::run::run(
+            &sc.arm,
+            sc.sim.duration_s,
+            sc.sim.output_every,
+            sc.sim.residual_window_s,
+            &mut |_, _| {},
+        )
+        .map_err(|e| RowError::Failed(e.to_string()))?;
+        let f = |v: f64| Some(Cell::Float(v));
+        let o = |v: Option<f64>| v.map(Cell::Float);
+        let mut metrics = vec![("tip_error_m".to_string(), f(m.tip_error_m))];
+        for j in &m.joints {
+            let n = &j.joint;
+            metrics.push((format!("{n}_settling_time_s"), o(j.settling_time_s)));
+            metrics.push((format!("{n}_overshoot_pct"), o(j.overshoot_pct)));
+            metrics.push((
+                format!("{n}_residual_vibration_rad"),
+                f(j.residual_vibration_rad),
+            ));
+            metrics.push((format!("{n}_final_error_rad"), f(j.final_error_rad)));
+        }
+        for p in &m.pairs {
+            let n = &p.joint;
+            metrics.push((format!("{n}_peak_tension_n"), f(p.peak_tension_n)));
+            metrics.push((format!("{n}_min_tension_n"), f(p.min_tension_n)));
+            metrics.push((
+                format!("{n}_slack_events"),
+                Some(Cell::Int(i64::from(p.slack_events))),
+            ));
+            metrics.push((format!("{n}_safety_factor"), f(p.safety_factor)));
+            metrics.push((
+                format!("{n}_static_safety_factor"),
+                f(p.static_safety_factor),
+            ));
+        }
+        let output = if keep_output {
+            Some(serde_json::to_value(&m).map_err(|e| RowError::Failed(e.to_string()))?)
+        } else {
+            None
+        };
+        Ok((metrics, output))
+    }
+}
+
 /// Runs `longreach batch`.
 pub fn run(args: &BatchArgs) -> Result<ExitCode> {
-    let batch = Batch::from_file(&args.file)?;
+    let batch = Batch::from_file(&args.file, &kinds())?;
     let shard = match &args.shard {
         Some(s) => Some(Shard::parse(s).map_err(|e| anyhow!(e))?),
         None => {

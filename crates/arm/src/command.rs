@@ -72,7 +72,8 @@ impl Command {
                     initial_rad
                 } else {
                     initial_rad
-                        + amplitude_rad * (std::f64::consts::TAU * frequency_hz * (t - start_s)).sin()
+                        + amplitude_rad
+                            * (std::f64::consts::TAU * frequency_hz * (t - start_s)).sin()
                 }
             }
             Command::Signal(s) => initial_rad + s.angle_rad(t),

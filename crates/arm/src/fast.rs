@@ -91,7 +91,11 @@ impl FastDynamics {
             let link = &spec.links[j + 1];
             links.push(LinkConst {
                 parent: joint.parent_link,
-                rot_pj: *joint.parent_from_joint.rotation.to_rotation_matrix().matrix(),
+                rot_pj: *joint
+                    .parent_from_joint
+                    .rotation
+                    .to_rotation_matrix()
+                    .matrix(),
                 trans_pj: joint.parent_from_joint.translation.vector,
                 axis: joint.axis.into_inner(),
                 mass: link.inertial.mass_kg,

@@ -49,6 +49,10 @@ pub struct DrivenArm {
     pub commands: Vec<Command>,
     /// Initial joint angles, rad.
     pub initial_q_rad: Vec<f64>,
+    /// Motor references include `R q_ref` of every joint a rope passes, so that a held
+    /// distal joint stays put when a proximal joint moves (default true). Off, each
+    /// motor reference only follows its own joint.
+    pub compensate_routing: bool,
     dt_s: f64,
     damping: Vec<f64>,
     /// `phi = ff_map * g_driven`: inverse of `R^T` restricted to the driven joints.
@@ -104,6 +108,17 @@ struct Scratch {
     /// Per pair: b11 b12 b21 b22 w0 w1 r0 r1.
     local: Vec<[f64; 8]>,
     prep: Vec<[PreparedStep; 2]>,
+    /// Saturation state of each servo (-1, 0, +1), carried from step to step.
+    sat: Vec<i8>,
+    /// Unclamped servo torque at the last evaluation, N*m.
+    raw: Vec<f64>,
+    ff: Vec<f64>,
+    ref_rate: Vec<f64>,
+    /// Joint references the motor references and feed-forward were computed for.
+    last_qref: Vec<f64>,
+    th1: Vec<f64>,
+    x1: Vec<f64>,
+    torque: Vec<f64>,
 }
 
 /// What the static map gives for one pair at a pose.
@@ -174,7 +189,10 @@ impl DrivenArm {
         if commands.len() != n {
             return Err(bad(
                 "command",
-                format!("{} commands for {n} joints: give one per joint", commands.len()),
+                format!(
+                    "{} commands for {n} joints: give one per joint",
+                    commands.len()
+                ),
             ));
         }
         let mut seen = vec![false; n];
@@ -183,7 +201,10 @@ impl DrivenArm {
             let jn = spec.joints.get(p.joint).map_or("?", |j| j.name.as_str());
             let field = |f: &str| format!("transmission[{i}] (joint {jn}).{f}");
             if p.joint >= n {
-                return Err(bad(&field("joint"), format!("joint index {} out of range", p.joint)));
+                return Err(bad(
+                    &field("joint"),
+                    format!("joint index {} out of range", p.joint),
+                ));
             }
             if seen[p.joint] {
                 return Err(bad(
@@ -212,7 +233,10 @@ impl DrivenArm {
                 }
             }
             if p.ropes_in_parallel == 0 {
-                return Err(bad(&field("ropes_in_parallel"), "must be at least 1".into()));
+                return Err(bad(
+                    &field("ropes_in_parallel"),
+                    "must be at least 1".into(),
+                ));
             }
             if p.tensioner == TensionerKind::ConstantForce && p.preload_n <= 0.0 {
                 return Err(bad(
@@ -258,7 +282,9 @@ impl DrivenArm {
                         ),
                     ));
                 }
-                if !(r.radius_m.is_finite() && r.radius_m > 0.0) || r.sign.abs() != 1.0 {
+                if !(r.radius_m.is_finite() && r.radius_m > 0.0)
+                    || (r.sign.abs() - 1.0).abs() > 1e-12
+                {
                     return Err(bad(
                         &field("route"),
                         format!(
@@ -310,12 +336,17 @@ impl DrivenArm {
         };
         Ok(Self {
             dynamics: FastDynamics::new(&spec),
-            damping: spec.joints.iter().map(|j| j.damping_n_m_s_per_rad).collect(),
+            damping: spec
+                .joints
+                .iter()
+                .map(|j| j.damping_n_m_s_per_rad)
+                .collect(),
             spec,
             pairs: compiled,
             routing,
             commands,
             initial_q_rad,
+            compensate_routing: true,
             dt_s,
             ff_map,
             driven,
@@ -357,6 +388,14 @@ impl DrivenArm {
             zero: vec![0.0; n],
             g: vec![0.0; n],
             local: vec![[0.0; 8]; np],
+            sat: vec![0; np],
+            raw: vec![0.0; np],
+            ff: vec![0.0; np],
+            ref_rate: vec![0.0; np],
+            last_qref: vec![f64::NAN; n],
+            th1: vec![0.0; np],
+            x1: vec![0.0; np],
+            torque: vec![0.0; np],
             prep: prep0.map_or_else(Vec::new, |p| vec![[p; 2]; np]),
         }
     }
@@ -491,6 +530,32 @@ impl DrivenArm {
         crate::dynamics::tip_position_m(&self.spec, q_rad).unwrap_or_else(|_| Vector3::zeros())
     }
 
+    /// Tensions `[+, -]` (N, per rope) every pair would have at the end of a step from
+    /// `st` that ends at joint angles `q_rad`, motor angles `motor_rad` and tensioner
+    /// stretches `carriage_m` (nothing is committed).
+    pub fn tensions_at(
+        &self,
+        st: &DrivenState,
+        q_rad: &[f64],
+        motor_rad: &[f64],
+        carriage_m: &[f64],
+    ) -> Vec<[f64; 2]> {
+        self.pairs
+            .iter()
+            .enumerate()
+            .map(|(p, pair)| {
+                let rq: f64 = pair.row.iter().zip(q_rad).map(|(a, b)| a * b).sum();
+                let u = pair.spec.motor_radius_m * motor_rad[p] - rq;
+                let x = carriage_m[p];
+                let f = |side: usize, s: f64| {
+                    let prep = pair.stepper.prepare(&st.ropes[p][side]);
+                    pair.stepper.tension(&prep, s * pair.inv_length).0
+                };
+                [f(0, x + u), f(1, x - u)]
+            })
+            .collect()
+    }
+
     /// Joint torques the ropes exert at the state, `R^T phi`, N*m.
     pub fn rope_joint_torques(&self, st: &DrivenState) -> Vec<f64> {
         let phi: Vec<f64> = self
@@ -514,17 +579,41 @@ impl DrivenArm {
         for j in 0..n {
             st.q_ref_rad[j] = self.commands[j].angle_rad(self.initial_q_rad[j], t1);
         }
-        let needs_ref = !self.pairs.is_empty();
-        if needs_ref {
+        // The references only change while a command moves: reuse them otherwise.
+        let same_ref = sc.last_qref == st.q_ref_rad;
+        if !same_ref && !self.pairs.is_empty() {
             self.dynamics.kinematics(&st.q_ref_rad, &mut sc.kin);
             self.dynamics
                 .rnea(&mut sc.kin, &sc.zero, &sc.zero, &mut sc.g);
+            sc.last_qref.copy_from_slice(&st.q_ref_rad);
         }
-        let mut ff = vec![0.0; self.pairs.len()];
-        let mut ref_rate = vec![0.0; self.pairs.len()];
+        let mut ff = std::mem::take(&mut sc.ff);
+        let mut ref_rate = std::mem::take(&mut sc.ref_rate);
         for (p, pair) in self.pairs.iter().enumerate() {
+            sc.prep[p] = [
+                pair.stepper.prepare(&st.ropes[p][0]),
+                pair.stepper.prepare(&st.ropes[p][1]),
+            ];
+            if same_ref {
+                ref_rate[p] = 0.0;
+                continue;
+            }
             let sp = self.static_pair(p, &sc.g);
-            let rq: f64 = pair.nz.iter().map(|&k| pair.row[k] * st.q_ref_rad[k]).sum();
+            let rq: f64 = if self.compensate_routing {
+                pair.nz.iter().map(|&k| pair.row[k] * st.q_ref_rad[k]).sum()
+            } else {
+                pair.nz
+                    .iter()
+                    .map(|&k| {
+                        let q = if k == pair.spec.joint {
+                            st.q_ref_rad[k]
+                        } else {
+                            self.initial_q_rad[k]
+                        };
+                        pair.row[k] * q
+                    })
+                    .sum()
+            };
             let th = (rq + sp.u_m) / pair.spec.motor_radius_m;
             let smooth = !matches!(self.commands[pair.spec.joint], Command::Step { .. });
             ref_rate[p] = if smooth {
@@ -534,44 +623,30 @@ impl DrivenArm {
             };
             st.motor_ref_rad[p] = th;
             ff[p] = pair.spec.motor_radius_m * sp.phi_n;
-            sc.prep[p] = [
-                pair.stepper.prepare(&st.ropes[p][0]),
-                pair.stepper.prepare(&st.ropes[p][1]),
-            ];
-        }
-
-        // Newton matrix base at q0.
-        self.dynamics.kinematics(&st.q_rad, &mut sc.kin);
-        self.dynamics.mass_matrix(&mut sc.kin, &mut sc.mbase);
-        for v in sc.mbase.iter_mut() {
-            *v *= four_h2;
-        }
-        for j in 0..n {
-            sc.mbase[j * n + j] += two_h * self.damping[j];
         }
 
         // Predictor.
         for j in 0..n {
             sc.q1[j] = st.q_rad[j] + h * st.qd_rad_s[j] + 0.5 * h * h * st.qdd_rad_s2[j];
         }
-        let mut th1: Vec<f64> = self
-            .pairs
-            .iter()
-            .enumerate()
-            .map(|(p, pair)| match pair.spec.motor.mode {
+        let mut th1 = std::mem::take(&mut sc.th1);
+        for (p, pair) in self.pairs.iter().enumerate() {
+            th1[p] = match pair.spec.motor.mode {
                 MotorMode::Kinematic => st.motor_ref_rad[p],
                 MotorMode::Servo { .. } => {
                     st.motor_rad[p]
                         + h * st.motor_rate_rad_s[p]
                         + 0.5 * h * h * st.motor_accel_rad_s2[p]
                 }
-            })
-            .collect();
-        let mut x1 = st.carriage_m.clone();
-        let mut torque = vec![0.0; self.pairs.len()];
+            };
+        }
+        let mut x1 = std::mem::take(&mut sc.x1);
+        x1.copy_from_slice(&st.carriage_m);
+        let mut torque = std::mem::take(&mut sc.torque);
 
         let mut converged = false;
         let mut iterations = 0;
+        let mut flips = 0;
         for _ in 0..60 {
             iterations += 1;
             for j in 0..n {
@@ -580,6 +655,16 @@ impl DrivenArm {
                 sc.a1[j] = four_h2 * dq - 2.0 * two_h * st.qd_rad_s[j] - st.qdd_rad_s2[j];
             }
             self.dynamics.kinematics(&sc.q1, &mut sc.kin);
+            if iterations == 1 {
+                // Newton matrix base, M at the predicted pose (kept for the step).
+                self.dynamics.mass_matrix(&mut sc.kin, &mut sc.mbase);
+                for v in sc.mbase.iter_mut() {
+                    *v *= four_h2;
+                }
+                for j in 0..n {
+                    sc.mbase[j * n + j] += two_h * self.damping[j];
+                }
+            }
             self.dynamics.rnea(&mut sc.kin, &sc.v1, &sc.a1, &mut sc.tau);
             for j in 0..n {
                 sc.rhs[j] = -(sc.tau[j] + self.damping[j] * sc.v1[j]);
@@ -624,26 +709,25 @@ impl DrivenArm {
                     } => {
                         let dth = th1[p] - st.motor_rad[p];
                         let w1 = two_h * dth - st.motor_rate_rad_s[p];
-                        let a1 = four_h2 * dth - 2.0 * two_h * st.motor_rate_rad_s[p]
+                        let a1 = four_h2 * dth
+                            - 2.0 * two_h * st.motor_rate_rad_s[p]
                             - st.motor_accel_rad_s2[p];
                         let raw = kp_n_m_per_rad * (st.motor_ref_rad[p] - th1[p])
                             + kd_n_m_s_per_rad * (ref_rate[p] - w1)
                             + if gravity_feedforward { ff[p] } else { 0.0 };
-                        let tq = raw.clamp(-torque_limit_n_m, torque_limit_n_m);
-                        torque[p] = tq;
-                        let dservo = if raw.abs() < torque_limit_n_m {
-                            kp_n_m_per_rad + two_h * kd_n_m_s_per_rad
+                        // Saturation with an active set held through the Newton solve
+                        // and corrected at convergence (no chattering between pieces).
+                        sc.raw[p] = raw;
+                        let (tq, dservo) = if sc.sat[p] == 0 {
+                            (raw, kp_n_m_per_rad + two_h * kd_n_m_s_per_rad)
                         } else {
-                            0.0
+                            (f64::from(sc.sat[p]) * torque_limit_n_m, 0.0)
                         };
+                        torque[p] = tq;
                         let jm = s.motor.inertia_kg_m2;
                         let bm = s.motor.damping_n_m_s;
                         let r = jm * a1 + bm * w1 - tq + rm * phi;
-                        (
-                            1.0,
-                            four_h2 * jm + two_h * bm + dservo + rm * rm * ku,
-                            r,
-                        )
+                        (1.0, four_h2 * jm + two_h * bm + dservo + rm * rm * ku, r)
                     }
                 };
                 let cfm = if cf { 1.0 } else { 0.0 };
@@ -679,6 +763,7 @@ impl DrivenArm {
                 continue;
             }
             if !cholesky_in_place(&mut sc.kq, n) {
+                (sc.ff, sc.ref_rate, sc.th1, sc.x1, sc.torque) = (ff, ref_rate, th1, x1, torque);
                 st.scratch = sc;
                 return Err(ArmError::BlowUp {
                     time_s: t1,
@@ -714,16 +799,43 @@ impl DrivenArm {
                     }
                 }
             }
+            if small && flips < 4 {
+                for (p, pair) in self.pairs.iter().enumerate() {
+                    if let MotorMode::Servo {
+                        torque_limit_n_m, ..
+                    } = pair.spec.motor.mode
+                    {
+                        let raw = sc.raw[p];
+                        let want = if raw > torque_limit_n_m {
+                            1
+                        } else if raw < -torque_limit_n_m {
+                            -1
+                        } else {
+                            0
+                        };
+                        if want != sc.sat[p] {
+                            sc.sat[p] = want;
+                            small = false;
+                        }
+                    }
+                }
+                if !small {
+                    flips += 1;
+                }
+            }
             if small {
                 converged = true;
                 break;
             }
         }
         if !converged {
+            (sc.ff, sc.ref_rate, sc.th1, sc.x1, sc.torque) = (ff, ref_rate, th1, x1, torque);
             st.scratch = sc;
             return Err(ArmError::BlowUp {
                 time_s: t1,
-                detail: format!("the implicit step did not converge in {iterations} Newton iterations"),
+                detail: format!(
+                    "the implicit step did not converge in {iterations} Newton iterations"
+                ),
             });
         }
         // Commit.
@@ -739,7 +851,8 @@ impl DrivenArm {
             }
             let dth = th1[p] - st.motor_rad[p];
             let w1 = two_h * dth - st.motor_rate_rad_s[p];
-            let a1 = four_h2 * dth - 2.0 * two_h * st.motor_rate_rad_s[p] - st.motor_accel_rad_s2[p];
+            let a1 =
+                four_h2 * dth - 2.0 * two_h * st.motor_rate_rad_s[p] - st.motor_accel_rad_s2[p];
             st.motor_rad[p] = th1[p];
             st.motor_rate_rad_s[p] = w1;
             st.motor_accel_rad_s2[p] = a1;
@@ -756,6 +869,7 @@ impl DrivenArm {
         }
         st.time_s = t1;
         st.iterations = iterations;
+        (sc.ff, sc.ref_rate, sc.th1, sc.x1, sc.torque) = (ff, ref_rate, th1, x1, torque);
         st.scratch = sc;
         let finite = st.q_rad.iter().chain(&st.qd_rad_s).all(|v| v.is_finite())
             && st.motor_rad.iter().all(|v| v.is_finite())
@@ -785,6 +899,14 @@ impl DrivenArm {
             zero: vec![],
             g: vec![],
             local: vec![],
+            sat: vec![],
+            raw: vec![],
+            ff: vec![],
+            ref_rate: vec![],
+            last_qref: vec![],
+            th1: vec![],
+            x1: vec![],
+            torque: vec![],
             prep: vec![],
         }
     }

@@ -184,3 +184,89 @@ pub struct CompiledPair {
     /// Ropes in parallel as a float.
     pub n: f64,
 }
+
+/// Joints between the base and `joint` (exclusive), base first.
+pub fn proximal_joints(spec: &crate::ArmSpec, joint: usize) -> Vec<usize> {
+    let mut out = Vec::new();
+    let mut link = spec.joints[joint].parent_link;
+    while link > 0 {
+        out.push(link - 1);
+        link = spec.joints[link - 1].parent_link;
+    }
+    out.reverse();
+    out
+}
+
+/// The default route of the pair driving `joint`: a relay at every proximal joint `k`
+/// with radius `joint_radii_m[k]` (the pulley radius of that joint) and sign +1.
+pub fn default_route(spec: &crate::ArmSpec, joint: usize, joint_radii_m: &[f64]) -> Vec<Relay> {
+    proximal_joints(spec, joint)
+        .into_iter()
+        .map(|k| Relay {
+            joint: k,
+            radius_m: joint_radii_m[k],
+            sign: 1.0,
+        })
+        .collect()
+}
+
+/// Span lengths of the rope driving `joint`, from the URDF geometry: the motor pulley
+/// to the first joint (`motor_offset_m`), then joint origin to joint origin along the
+/// chain up to the driven joint, m.
+pub fn span_lengths_m(spec: &crate::ArmSpec, joint: usize, motor_offset_m: f64) -> Vec<f64> {
+    let mut spans = vec![motor_offset_m];
+    let chain: Vec<usize> = proximal_joints(spec, joint)
+        .into_iter()
+        .chain(std::iter::once(joint))
+        .collect();
+    for w in chain.windows(2) {
+        spans.push(
+            spec.joints[w[1]]
+                .parent_from_joint
+                .translation
+                .vector
+                .norm(),
+        );
+    }
+    spans
+}
+
+/// One rope pair per joint of `spec`: every pulley (joint, motor, relays) of radius
+/// `radius_m`, relays at every proximal joint (sign +1), span lengths from the
+/// geometry with the motor `motor_offset_m` before the first joint. For benchmarks,
+/// tests and quick studies.
+pub fn uniform_pairs(
+    spec: &crate::ArmSpec,
+    rope_name: &str,
+    rope: &RopeParams,
+    law: &RopeLaw,
+    radius_m: f64,
+    preload_n: f64,
+    tensioner: TensionerKind,
+    motor: MotorSpec,
+    motor_offset_m: f64,
+) -> Vec<PairSpec> {
+    let radii = vec![radius_m; spec.ndofs()];
+    (0..spec.ndofs())
+        .map(|j| {
+            let spans = span_lengths_m(spec, j, motor_offset_m);
+            PairSpec {
+                joint: j,
+                rope_name: rope_name.to_string(),
+                rope: rope.clone(),
+                law: law.clone(),
+                ropes_in_parallel: 1,
+                joint_radius_m: radius_m,
+                motor_radius_m: radius_m,
+                route: default_route(spec, j, &radii),
+                length_m: spans.iter().sum(),
+                span_lengths_m: spans,
+                preload_n,
+                prestretch_n: 0.0,
+                tensioner,
+                motor,
+                effects: vec![],
+            }
+        })
+        .collect()
+}

@@ -1,4 +1,5 @@
 //! Bode scenario files: inline ropes, laws, and the errors users see.
+#![allow(clippy::float_cmp)] // parsed constants must come through bit for bit
 
 use longreach_scenario::BodeScenario;
 

@@ -71,3 +71,76 @@ pub const TWISTED_URDF: &str = r#"<?xml version="1.0"?>
   </joint>
 </robot>
 "#;
+
+use longreach_arm::transmission::{default_route, span_lengths_m};
+use longreach_arm::{
+    load_urdf, ArmSpec, Command, DrivenArm, MotorMode, MotorSpec, PairSpec, TensionerKind,
+};
+use longreach_rope::{Catalog, LawKind, RopeLaw};
+
+/// One rope pair per joint of `spec`, every pulley of radius `r_m`, relays at every
+/// proximal joint, catalog rope `rope` with law `kind`.
+pub fn uniform_pairs(
+    spec: &ArmSpec,
+    rope: &str,
+    kind: LawKind,
+    r_m: f64,
+    preload_n: f64,
+    tensioner: TensionerKind,
+    motor: MotorSpec,
+) -> Vec<PairSpec> {
+    let params = Catalog::builtin().get(rope).unwrap().clone();
+    let law = RopeLaw::from_params(&params, kind).unwrap();
+    let radii = vec![r_m; spec.ndofs()];
+    (0..spec.ndofs())
+        .map(|j| {
+            let spans = span_lengths_m(spec, j, 0.5);
+            PairSpec {
+                joint: j,
+                rope_name: rope.to_string(),
+                rope: params.clone(),
+                law: law.clone(),
+                ropes_in_parallel: 1,
+                joint_radius_m: r_m,
+                motor_radius_m: r_m,
+                route: default_route(spec, j, &radii),
+                length_m: spans.iter().sum(),
+                span_lengths_m: spans,
+                preload_n,
+                prestretch_n: 0.0,
+                tensioner,
+                motor,
+                effects: vec![],
+            }
+        })
+        .collect()
+}
+
+/// A servo motor with the given gains.
+pub fn servo(inertia: f64, kp: f64, kd: f64) -> MotorSpec {
+    MotorSpec {
+        inertia_kg_m2: inertia,
+        damping_n_m_s: 0.0,
+        mode: MotorMode::Servo {
+            kp_n_m_per_rad: kp,
+            kd_n_m_s_per_rad: kd,
+            torque_limit_n_m: f64::INFINITY,
+            gravity_feedforward: true,
+        },
+    }
+}
+
+/// arm5 (the MuJoCo anchor) with elastic stainless ropes, r = 25 mm, servo motors.
+pub fn arm5_driven(motor: MotorSpec, commands: Vec<Command>) -> DrivenArm {
+    let spec = load_urdf(robot_path("arm5/arm5.urdf")).unwrap();
+    let pairs = uniform_pairs(
+        &spec,
+        "stainless1",
+        LawKind::Elastic,
+        0.025,
+        20000.0,
+        TensionerKind::Fixed,
+        motor,
+    );
+    DrivenArm::new(spec, pairs, commands, vec![0.0; 5], 1e-3).unwrap()
+}

@@ -14,7 +14,10 @@ use crate::error::ScenarioError;
 use crate::locate::line_of;
 use crate::spec::{field_error, from_toml};
 
-use super::kind::Kind;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use super::kind::ScenarioKind;
 use super::path;
 use super::row::Cell;
 
@@ -100,8 +103,11 @@ pub struct Batch {
     pub name: String,
     /// The batch file, for messages.
     pub file: String,
-    /// Kind of every scenario (from the base's `kind`).
-    pub kind: Kind,
+    /// Kind of every scenario (the base's `kind`, or detected from its tables).
+    pub kind: Arc<dyn ScenarioKind>,
+    /// Folder the base scenario's relative paths resolve against (the base file's folder,
+    /// or the batch file's for an inline base).
+    pub base_dir: PathBuf,
     /// Digest of the batch text and the base text: a journal belongs to one batch.
     pub fingerprint: String,
     base: Table,
@@ -162,8 +168,9 @@ fn fnv1a(parts: &[&str]) -> String {
 }
 
 impl Batch {
-    /// Reads and checks a batch file; a `base = "file"` is read relative to it.
-    pub fn from_file(file: &Path) -> Result<Self, ScenarioError> {
+    /// Reads and checks a batch file; a `base = "file"` is read relative to it. `kinds`
+    /// are the scenario kinds the base may be of (e.g. [`super::builtin_kinds`]).
+    pub fn from_file(file: &Path, kinds: &[Arc<dyn ScenarioKind>]) -> Result<Self, ScenarioError> {
         let name = file.display().to_string();
         let text = std::fs::read_to_string(file).map_err(|e| ScenarioError {
             file: name.clone(),
@@ -176,15 +183,21 @@ impl Batch {
         let stem = file
             .file_stem()
             .map_or_else(|| "batch".into(), |s| s.to_string_lossy().into_owned());
-        Self::from_str(&text, &name, &stem, dir)
+        Self::from_str(&text, &name, &stem, dir, kinds)
     }
 
     /// Parses and checks batch text; `file` names it in errors, `stem` is the default
     /// name and `dir` the folder a `base = "file"` is relative to.
-    pub fn from_str(text: &str, file: &str, stem: &str, dir: &Path) -> Result<Self, ScenarioError> {
+    pub fn from_str(
+        text: &str,
+        file: &str,
+        stem: &str,
+        dir: &Path,
+        kinds: &[Arc<dyn ScenarioKind>],
+    ) -> Result<Self, ScenarioError> {
         let spec: BatchSpec = from_toml(text, file)?;
         // The base: a file next to the batch file, or an inline table.
-        let (base_text, base_file) = match &spec.base {
+        let (base_text, base_file, base_dir) = match &spec.base {
             Value::String(rel) => {
                 let p = dir.join(rel);
                 let t = std::fs::read_to_string(&p).map_err(|e| {
@@ -196,7 +209,10 @@ impl Batch {
                         "give the base scenario's path relative to the batch file, or an inline [base] table".into(),
                     )
                 })?;
-                (t, p.display().to_string())
+                let base_dir = p
+                    .parent()
+                    .map_or_else(|| dir.to_path_buf(), Path::to_path_buf);
+                (t, p.display().to_string(), base_dir)
             }
             Value::Table(t) => (
                 toml::to_string(t).map_err(|e| {
@@ -209,6 +225,7 @@ impl Batch {
                     )
                 })?,
                 format!("{file} [base]"),
+                dir.to_path_buf(),
             ),
             other => {
                 return Err(err(
@@ -237,16 +254,28 @@ impl Batch {
                 ))
             }
         };
-        let kind = Kind::from_name(kind_name).ok_or_else(|| {
+        let names: Vec<&str> = kinds.iter().map(|k| k.name()).collect();
+        let kind = match kind_name {
+            Some(name) => kinds.iter().find(|k| k.name() == name),
+            None => kinds.iter().find(|k| k.detect(&base)),
+        }
+        .cloned()
+        .ok_or_else(|| {
             field_error(
                 &base_text,
                 &base_file,
                 "kind",
-                format!("batches cannot run kind `{}` yet", kind_name.unwrap_or("")),
-                &format!("use a base scenario of kind {}", Kind::NAMES),
+                match kind_name {
+                    Some(name) => format!("batches cannot run scenarios of kind `{name}`"),
+                    None => "cannot tell the scenario's kind from its tables".into(),
+                },
+                &format!(
+                    "use a base scenario of kind {} (`kind = \"...\"`)",
+                    names.join(", ")
+                ),
             )
         })?;
-        kind.check(&base_text, &base_file)?;
+        kind.check(&base_text, &base_file, &base_dir)?;
 
         // Paths set so far by one source each: (path, which source).
         let mut claimed: Vec<(String, String)> = Vec::new();
@@ -319,7 +348,7 @@ impl Batch {
                     "simplify the [set] values".into(),
                 )
             })?;
-            kind.check(&after, &format!("{file}: the base after [set]"))
+            kind.check(&after, &format!("{file}: the base after [set]"), &base_dir)
                 .map_err(|e| ScenarioError {
                     line: line_of(text, "set"),
                     file: file.to_string(),
@@ -559,6 +588,7 @@ impl Batch {
             name,
             file: file.to_string(),
             kind,
+            base_dir,
             fingerprint: fnv1a(&[text, &base_text]),
             base,
             columns,
@@ -633,7 +663,7 @@ mod tests {
     fn batch(body: &str) -> Result<Batch, ScenarioError> {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenarios");
         let text = format!("base = \"bode_dyneema2.toml\"\n{body}");
-        Batch::from_str(&text, "t.toml", "t", &dir)
+        Batch::from_str(&text, "t.toml", "t", &dir, &super::super::builtin_kinds())
     }
 
     fn texts(b: &Batch, i: usize) -> Vec<String> {

@@ -39,7 +39,9 @@ mod shard;
 
 pub use expand::{Batch, Scenario};
 pub use journal::{merge, Header, Journal, JournalError, JOURNAL_FILE};
-pub use kind::{Kind, RowError};
+pub use kind::{builtin_kinds, one_line, BodeKind, Outcome, RowError, ScenarioKind};
 pub use row::{Cell, CellKind, Column, Row, Status, Table};
 pub use run::{run_one, run_scenarios, RunOptions};
 pub use shard::Shard;
+/// A scenario as a TOML tree (what [`ScenarioKind::detect`] looks at).
+pub use toml::Table as ScenarioTree;

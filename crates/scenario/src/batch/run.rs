@@ -9,7 +9,7 @@ use rayon::prelude::*;
 
 use super::expand::Batch;
 use super::kind::RowError;
-use super::row::{Row, Status};
+use super::row::{Cell, Row, Status};
 
 /// Options of a run.
 #[derive(Debug, Clone, Default)]
@@ -25,7 +25,22 @@ pub fn run_one(batch: &Batch, index: usize, options: &RunOptions) -> Row {
     let scenario = batch.scenario(index);
     let label = format!("{} scenario {index}", batch.file);
     let keep = options.outputs_dir.is_some();
-    let (metrics, status, error, output) = match batch.kind.run(&scenario.text, &label, keep) {
+    let result = batch
+        .kind
+        .run(&scenario.text, &label, &batch.base_dir, keep)
+        .and_then(|(metrics, output)| {
+            // A NaN or infinite metric is a numerical blow-up, never a result.
+            match metrics.iter().find_map(|(name, cell)| match cell {
+                Some(Cell::Float(v)) if !v.is_finite() => {
+                    Some(format!("numerical blow-up: metric `{name}` is {v}"))
+                }
+                _ => None,
+            }) {
+                Some(e) => Err(RowError::Failed(e)),
+                None => Ok((metrics, output)),
+            }
+        });
+    let (metrics, status, error, output) = match result {
         Ok((metrics, output)) => (metrics, Status::Ok, String::new(), output),
         Err(RowError::Invalid(e)) => (Vec::new(), Status::Invalid, e, None),
         Err(RowError::Failed(e)) => (Vec::new(), Status::Failed, e, None),

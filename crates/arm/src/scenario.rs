@@ -1,0 +1,530 @@
+//! Arm scenario files (`longreach run`): TOML -> [`DrivenArm`], with errors that name
+//! the file, line, field and fix. The schema is documented in `docs/arm.md`.
+
+use std::path::{Path, PathBuf};
+
+use longreach_rope::LawKind;
+use longreach_scenario::spec::{field_error, resolve_rope, toml_error, RopeRef};
+use longreach_scenario::ScenarioError;
+use serde::Deserialize;
+
+use crate::command::Command;
+use crate::transmission::{
+    proximal_joints, span_lengths_m, MotorMode, MotorSpec, PairSpec, Relay, TensionerKind,
+};
+use crate::{load_urdf, DrivenArm};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ArmFile {
+    arm: ArmSection,
+    sim: SimSection,
+    #[serde(default)]
+    transmission_defaults: Option<toml::Table>,
+    #[serde(default)]
+    transmission: Vec<toml::Table>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ArmSection {
+    urdf: String,
+    #[serde(default)]
+    tip_frame: Option<String>,
+    #[serde(default = "yes")]
+    gravity: bool,
+    #[serde(default)]
+    initial_q_rad: Option<Vec<f64>>,
+    #[serde(default = "half_metre")]
+    motor_offset_m: f64,
+}
+
+fn yes() -> bool {
+    true
+}
+fn half_metre() -> f64 {
+    0.5
+}
+fn one() -> u32 {
+    1
+}
+
+/// `[sim]`: time step, duration and output options.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimSection {
+    /// Step, s.
+    pub dt_s: f64,
+    /// Length of the run, s.
+    pub duration_s: f64,
+    /// Write every n-th step to the time series (1 = every step).
+    #[serde(default = "one_usize")]
+    pub output_every: usize,
+    /// Residual vibration is measured over the last this many seconds.
+    #[serde(default = "one_f")]
+    pub residual_window_s: f64,
+}
+
+fn one_usize() -> usize {
+    1
+}
+fn one_f() -> f64 {
+    1.0
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TransmissionSection {
+    joint: String,
+    rope: RopeRef,
+    #[serde(default)]
+    law: Option<LawKind>,
+    #[serde(default = "one")]
+    ropes_in_parallel: u32,
+    joint_radius_m: f64,
+    #[serde(default)]
+    motor_radius_m: Option<f64>,
+    #[serde(default)]
+    route: Option<Vec<RelaySection>>,
+    #[serde(default)]
+    length_m: Option<f64>,
+    preload_n: f64,
+    #[serde(default)]
+    prestretch_n: f64,
+    #[serde(default)]
+    tensioner: Option<String>,
+    #[serde(default)]
+    effects: Vec<EffectSection>,
+    motor: MotorSection,
+    #[serde(default)]
+    command: Option<CommandSection>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RelaySection {
+    joint: String,
+    radius_m: f64,
+    #[serde(default = "plus")]
+    sign: f64,
+}
+
+fn plus() -> f64 {
+    1.0
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct EffectSection {
+    name: String,
+    #[serde(default)]
+    params: Vec<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MotorSection {
+    #[serde(default)]
+    mode: Option<String>,
+    #[serde(default)]
+    inertia_kg_m2: f64,
+    #[serde(default)]
+    damping_n_m_s: f64,
+    #[serde(default)]
+    kp_n_m_per_rad: f64,
+    #[serde(default)]
+    kd_n_m_s_per_rad: f64,
+    #[serde(default)]
+    torque_limit_n_m: Option<f64>,
+    #[serde(default = "yes")]
+    gravity_feedforward: bool,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CommandSection {
+    kind: String,
+    #[serde(default)]
+    to_rad: Option<f64>,
+    #[serde(default)]
+    at_s: Option<f64>,
+    #[serde(default)]
+    start_s: Option<f64>,
+    #[serde(default)]
+    max_velocity_rad_s: Option<f64>,
+    #[serde(default)]
+    max_accel_rad_s2: Option<f64>,
+    #[serde(default)]
+    amplitude_rad: Option<f64>,
+    #[serde(default)]
+    frequency_hz: Option<f64>,
+    #[serde(default)]
+    file: Option<String>,
+    #[serde(default)]
+    column: Option<String>,
+}
+
+/// A parsed arm scenario, ready to run.
+#[derive(Debug, Clone)]
+pub struct ArmScenario {
+    /// The compiled arm.
+    pub arm: DrivenArm,
+    /// `[sim]`.
+    pub sim: SimSection,
+    /// The URDF file used.
+    pub urdf_path: PathBuf,
+}
+
+/// Merges `defaults` into `t` (keys absent from `t`; nested tables recursively).
+fn merge(t: &mut toml::Table, defaults: &toml::Table) {
+    for (k, v) in defaults {
+        match (t.get_mut(k), v) {
+            (Some(toml::Value::Table(a)), toml::Value::Table(b)) => merge(a, b),
+            (Some(_), _) => {}
+            (None, _) => {
+                t.insert(k.clone(), v.clone());
+            }
+        }
+    }
+}
+
+/// Reads and compiles an arm scenario file.
+pub fn load(path: &Path) -> Result<ArmScenario, ScenarioError> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| ScenarioError {
+        file: file.clone(),
+        line: None,
+        field: String::new(),
+        message: format!("cannot read: {e}"),
+        fix: "check the path".into(),
+    })?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    parse(&text, &file, base)
+}
+
+/// Compiles the scenario `text` (from `file`; relative paths resolve against `base`).
+pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, ScenarioError> {
+    let doc: ArmFile = toml::from_str(text).map_err(|e| toml_error(text, file, &e))?;
+    let ferr = |field: &str, msg: String, fix: &str| field_error(text, file, field, msg, fix);
+    let urdf_path = base.join(&doc.arm.urdf);
+    let mut spec = load_urdf(&urdf_path).map_err(|e| {
+        ferr(
+            "arm.urdf",
+            e.to_string(),
+            "give the URDF path relative to the scenario file",
+        )
+    })?;
+    if let Some(tip) = &doc.arm.tip_frame {
+        spec.set_tip_frame(tip)
+            .map_err(|e| ferr("arm.tip_frame", e.to_string(), "name a link of the URDF"))?;
+    }
+    if !doc.arm.gravity {
+        spec.gravity_m_s2 = nalgebra::Vector3::zeros();
+    }
+    let n = spec.ndofs();
+    let s = &doc.sim;
+    if !(s.dt_s.is_finite() && s.dt_s > 0.0 && s.dt_s <= 0.05) {
+        return Err(ferr(
+            "sim.dt_s",
+            format!("dt_s = {} s", s.dt_s),
+            "give a step in (0, 0.05] s; 1e-3 resolves the arm's modes",
+        ));
+    }
+    if !(s.duration_s.is_finite() && s.duration_s > 0.0) {
+        return Err(ferr(
+            "sim.duration_s",
+            format!("duration_s = {}", s.duration_s),
+            "give a positive duration in s",
+        ));
+    }
+    if s.output_every == 0 {
+        return Err(ferr("sim.output_every", "0".into(), "give 1 or more"));
+    }
+    let initial = doc
+        .arm
+        .initial_q_rad
+        .clone()
+        .unwrap_or_else(|| vec![0.0; n]);
+    if initial.len() != n || initial.iter().any(|v| !v.is_finite()) {
+        return Err(ferr(
+            "arm.initial_q_rad",
+            format!(
+                "{} values for {n} joints (or a non-finite value)",
+                initial.len()
+            ),
+            "give one finite angle per moving joint, in rad",
+        ));
+    }
+    // Parse every transmission (defaults merged in).
+    let mut sections = Vec::new();
+    for (i, t) in doc.transmission.iter().enumerate() {
+        let mut t = t.clone();
+        if let Some(d) = &doc.transmission_defaults {
+            merge(&mut t, d);
+        }
+        let sec: TransmissionSection =
+            toml::Value::Table(t)
+                .try_into()
+                .map_err(|e: toml::de::Error| {
+                    ferr(
+                        &format!("transmission.{i}"),
+                        format!("transmission {i}: {}", e.message().trim()),
+                        "see docs/arm.md for the fields of a [[transmission]] table",
+                    )
+                })?;
+        sections.push(sec);
+    }
+    let joint_of = |name: &str, field: &str| {
+        spec.joint_index(name).ok_or_else(|| {
+            ferr(
+                field,
+                format!("no moving joint named '{name}'"),
+                &format!(
+                    "use one of: {}",
+                    spec.joints
+                        .iter()
+                        .map(|j| j.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            )
+        })
+    };
+    let mut joints = Vec::new();
+    for (i, sec) in sections.iter().enumerate() {
+        joints.push(joint_of(&sec.joint, &format!("transmission.{i}.joint"))?);
+    }
+    let mut joint_radius = vec![None; n];
+    for (sec, &j) in sections.iter().zip(&joints) {
+        joint_radius[j] = Some(sec.joint_radius_m);
+    }
+    let mut pairs = Vec::new();
+    let mut commands = vec![Command::Hold; n];
+    for (i, (sec, &j)) in sections.iter().zip(&joints).enumerate() {
+        let f = |k: &str| format!("transmission.{i}.{k}");
+        let (rope_name, params, mut law) =
+            resolve_rope(text, file, &f("rope"), &sec.rope, sec.law)?;
+        let mut effects = Vec::new();
+        for (e_i, e) in sec.effects.iter().enumerate() {
+            let eff = longreach_drive::effects::find(&e.name).ok_or_else(|| {
+                ferr(
+                    &f(&format!("effects.{e_i}")),
+                    format!("unknown effect '{}'", e.name),
+                    &format!(
+                        "use one of the registered effects: {}",
+                        longreach_drive::effects::names().join(", ")
+                    ),
+                )
+            })?;
+            let values = if e.params.is_empty() {
+                eff.params().iter().map(|p| p.default).collect()
+            } else {
+                e.params.clone()
+            };
+            eff.apply(&values, &mut law, None).map_err(|err| {
+                ferr(
+                    &f(&format!("effects.{e_i}")),
+                    err.to_string(),
+                    "give one value per parameter, within its bounds",
+                )
+            })?;
+            effects.push(e.name.clone());
+        }
+        let route = match &sec.route {
+            Some(r) => {
+                let mut out = Vec::new();
+                for (k, relay) in r.iter().enumerate() {
+                    out.push(Relay {
+                        joint: joint_of(&relay.joint, &f(&format!("route.{k}.joint")))?,
+                        radius_m: relay.radius_m,
+                        sign: relay.sign,
+                    });
+                }
+                out
+            }
+            None => {
+                let mut out = Vec::new();
+                for k in proximal_joints(&spec, j) {
+                    let radius_m = joint_radius[k].ok_or_else(|| {
+                        ferr(
+                            &f("route"),
+                            format!(
+                                "the rope passes joint '{}', which has no transmission to take the relay radius from",
+                                spec.joints[k].name
+                            ),
+                            "give route = [{ joint = \"...\", radius_m = ..., sign = 1 }, ...] explicitly",
+                        )
+                    })?;
+                    out.push(Relay {
+                        joint: k,
+                        radius_m,
+                        sign: 1.0,
+                    });
+                }
+                out
+            }
+        };
+        let spans = span_lengths_m(&spec, j, doc.arm.motor_offset_m);
+        let length_m = sec.length_m.unwrap_or_else(|| spans.iter().sum());
+        let tensioner = match sec.tensioner.as_deref() {
+            None | Some("fixed") => TensionerKind::Fixed,
+            Some("constant_force") => TensionerKind::ConstantForce,
+            Some(other) => {
+                return Err(ferr(
+                    &f("tensioner"),
+                    format!("unknown tensioner '{other}'"),
+                    "use \"fixed\" or \"constant_force\"",
+                ))
+            }
+        };
+        let m = &sec.motor;
+        let mode = match m.mode.as_deref() {
+            None | Some("servo") => MotorMode::Servo {
+                kp_n_m_per_rad: m.kp_n_m_per_rad,
+                kd_n_m_s_per_rad: m.kd_n_m_s_per_rad,
+                torque_limit_n_m: m.torque_limit_n_m.unwrap_or(f64::INFINITY),
+                gravity_feedforward: m.gravity_feedforward,
+            },
+            Some("kinematic") => MotorMode::Kinematic,
+            Some(other) => {
+                return Err(ferr(
+                    &f("motor.mode"),
+                    format!("unknown motor mode '{other}'"),
+                    "use \"servo\" or \"kinematic\"",
+                ))
+            }
+        };
+        pairs.push(PairSpec {
+            joint: j,
+            rope_name,
+            rope: params,
+            law,
+            ropes_in_parallel: sec.ropes_in_parallel,
+            joint_radius_m: sec.joint_radius_m,
+            motor_radius_m: sec.motor_radius_m.unwrap_or(sec.joint_radius_m),
+            route,
+            length_m,
+            span_lengths_m: spans,
+            preload_n: sec.preload_n,
+            prestretch_n: sec.prestretch_n,
+            tensioner,
+            motor: MotorSpec {
+                inertia_kg_m2: m.inertia_kg_m2,
+                damping_n_m_s: m.damping_n_m_s,
+                mode,
+            },
+            effects,
+        });
+        if let Some(c) = &sec.command {
+            commands[j] = parse_command(c, &f("command"), base, &ferr)?;
+        }
+    }
+    let arm = DrivenArm::new(spec, pairs, commands, initial, s.dt_s)
+        .map_err(|e| ferr("transmission", e.to_string(), "correct the named field"))?;
+    Ok(ArmScenario {
+        arm,
+        sim: doc.sim,
+        urdf_path,
+    })
+}
+
+fn parse_command(
+    c: &CommandSection,
+    field: &str,
+    base: &Path,
+    ferr: &dyn Fn(&str, String, &str) -> ScenarioError,
+) -> Result<Command, ScenarioError> {
+    let need = |v: Option<f64>, k: &str| {
+        v.filter(|x| x.is_finite()).ok_or_else(|| {
+            ferr(
+                &format!("{field}.{k}"),
+                format!("a '{}' command needs a finite `{k}`", c.kind),
+                &format!("add {k} = <value> to the command table"),
+            )
+        })
+    };
+    let positive = |v: f64, k: &str| {
+        if v > 0.0 {
+            Ok(v)
+        } else {
+            Err(ferr(
+                &format!("{field}.{k}"),
+                format!("{k} = {v}"),
+                "give a value > 0",
+            ))
+        }
+    };
+    Ok(match c.kind.as_str() {
+        "hold" => Command::Hold,
+        "step" => Command::Step {
+            to_rad: need(c.to_rad, "to_rad")?,
+            at_s: c.at_s.or(c.start_s).unwrap_or(0.0),
+        },
+        "trapezoid" => Command::Trapezoid {
+            to_rad: need(c.to_rad, "to_rad")?,
+            start_s: c.start_s.unwrap_or(0.0),
+            max_velocity_rad_s: positive(
+                need(c.max_velocity_rad_s, "max_velocity_rad_s")?,
+                "max_velocity_rad_s",
+            )?,
+            max_accel_rad_s2: positive(
+                need(c.max_accel_rad_s2, "max_accel_rad_s2")?,
+                "max_accel_rad_s2",
+            )?,
+        },
+        "sine" => Command::Sine {
+            amplitude_rad: need(c.amplitude_rad, "amplitude_rad")?,
+            frequency_hz: positive(need(c.frequency_hz, "frequency_hz")?, "frequency_hz")?,
+            start_s: c.start_s.unwrap_or(0.0),
+        },
+        "csv" => {
+            let file = c.file.as_ref().ok_or_else(|| {
+                ferr(&format!("{field}.file"), "a csv command needs `file`".into(), "add file = \"path.csv\" (columns time_s and an angle column, rad, offset from the initial angle)")
+            })?;
+            let column = c.column.clone().unwrap_or_else(|| "angle_rad".into());
+            let path = base.join(file);
+            let series = read_series(&path, &column).map_err(|m| {
+                ferr(
+                    &format!("{field}.file"),
+                    m,
+                    "give a CSV with a header, a time_s column and the named angle column",
+                )
+            })?;
+            Command::Signal(series)
+        }
+        other => {
+            return Err(ferr(
+                &format!("{field}.kind"),
+                format!("unknown command kind '{other}'"),
+                "use hold, step, trapezoid, sine or csv",
+            ))
+        }
+    })
+}
+
+fn read_series(path: &Path, column: &str) -> Result<longreach_drive::InputSignal, String> {
+    let mut rdr = csv::Reader::from_path(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let headers = rdr.headers().map_err(|e| e.to_string())?.clone();
+    let ti = headers
+        .iter()
+        .position(|h| h == "time_s")
+        .ok_or("no time_s column")?;
+    let ai = headers
+        .iter()
+        .position(|h| h == column)
+        .ok_or_else(|| format!("no column '{column}'"))?;
+    let (mut t, mut a) = (Vec::new(), Vec::new());
+    for (row, rec) in rdr.records().enumerate() {
+        let rec = rec.map_err(|e| e.to_string())?;
+        let parse = |i: usize| -> Result<f64, String> {
+            rec.get(i)
+                .unwrap_or("")
+                .trim()
+                .parse::<f64>()
+                .map_err(|e| format!("{}: data row {}: {e}", path.display(), row + 1))
+        };
+        t.push(parse(ti)?);
+        a.push(parse(ai)?);
+    }
+    longreach_drive::InputSignal::series(t, a).map_err(|e| e.to_string())
+}

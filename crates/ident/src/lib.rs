@@ -1,0 +1,21 @@
+//! Identification tools for the longreach project: measurement datasets
+//! (`longreach-measurement/1`), error metrics and residual checks, bounded nonlinear
+//! least squares with uncertainties, and sensor models for synthetic data.
+
+pub mod dataset;
+pub mod fitting;
+pub mod metrics;
+pub mod sensors;
+
+pub use dataset::{
+    CyclicDataset, CyclicRun, CyclicSpecimen, Dataset, DatasetError, DatasetKind, Frf,
+    RelaxationDataset, RelaxationRun, RelaxationSpecimen, RigSpec, Segment, SweepDataset, SweepRun,
+    Tensioner, WindowAlignment,
+};
+pub use fitting::{fit, FitError, FitOptions, FitResult, ParamSpec, Residuals};
+pub use metrics::MetricsError;
+pub use sensors::{Encoder, GaussianNoise, SensorError, ENCODER_RESOLUTION_RAD};
+pub mod analysis;
+pub mod model;
+pub mod sim;
+pub mod synth;

@@ -1,0 +1,705 @@
+//! Models a user believes in: a rope law, base parameters (known or fitted, global or
+//! per run) and a list of effects from the registry ([`longreach_drive::effects`]),
+//! read from and written to TOML model files (format: `docs/models.md`).
+
+use longreach_drive::effects::{self, DataKind, Effect};
+use longreach_rope::{Catalog, LawKind, RopeLaw, RopeParams};
+use longreach_scenario::spec::field_error;
+use longreach_scenario::ScenarioError;
+use serde::Serialize;
+
+use crate::dataset::{Dataset, DatasetKind};
+use crate::fitting::ParamSpec;
+
+/// One parameter of a model: its value, bounds, and whether it is fitted.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ParamDef {
+    /// Name (`k1_scale`, `c2`, `stiffening_per_n`, ...).
+    pub name: String,
+    /// Unit.
+    pub unit: String,
+    /// Value (the starting value when fitted).
+    pub value: f64,
+    /// Per-run values after a per-run fit (`None` for a global parameter).
+    pub run_values: Option<Vec<f64>>,
+    /// Lower bound.
+    pub lower: f64,
+    /// Upper bound.
+    pub upper: f64,
+    /// Fitted on a log scale.
+    pub log_scale: bool,
+    /// Fitted (true) or known (false).
+    pub fit: bool,
+    /// One value per run instead of one for the whole dataset.
+    pub per_run: bool,
+}
+
+impl ParamDef {
+    /// A fitted global parameter on a log scale.
+    pub fn fitted(name: &str, unit: &str, value: f64, lower: f64, upper: f64) -> Self {
+        Self {
+            name: name.into(),
+            unit: unit.into(),
+            value,
+            run_values: None,
+            lower,
+            upper,
+            log_scale: true,
+            fit: true,
+            per_run: false,
+        }
+    }
+
+    /// Value for run `run`.
+    pub fn value_for(&self, run: usize) -> f64 {
+        self.run_values
+            .as_ref()
+            .and_then(|v| v.get(run).copied())
+            .unwrap_or(self.value)
+    }
+}
+
+/// An effect included in a model, with its parameters.
+#[derive(Debug, Clone)]
+pub struct EffectUse {
+    /// The registered effect.
+    pub effect: &'static dyn Effect,
+    /// Its parameters, in the effect's order.
+    pub params: Vec<ParamDef>,
+}
+
+/// A model of a dataset: rope law, base parameters, effects.
+#[derive(Debug, Clone)]
+pub struct Model {
+    /// Rope name (catalog).
+    pub rope: String,
+    /// Law kind.
+    pub law_kind: LawKind,
+    /// Law built from the catalog constants (base parameters are applied on top).
+    pub law: RopeLaw,
+    /// Base parameters: `k1_scale` multiplies k1; `k1`, `c1`, `c2`, `k3`, `c3`, `kp`
+    /// set the constant; `output_damping_n_m_s` sets the rig's C.
+    pub base: Vec<ParamDef>,
+    /// Effects.
+    pub effects: Vec<EffectUse>,
+}
+
+/// Names a base parameter may have, with units.
+pub const BASE_PARAMS: &[(&str, &str)] = &[
+    ("k1_scale", "1"),
+    ("k1", "N"),
+    ("c1", "N*s"),
+    ("c2", "N*s"),
+    ("k3", "N"),
+    ("c3", "N*s"),
+    ("kp", "N"),
+    ("output_damping_n_m_s", "N*m*s"),
+];
+
+/// The kind of a dataset as the effect registry sees it.
+pub fn data_kind(ds: &Dataset) -> DataKind {
+    match ds.kind {
+        DatasetKind::SineSweep(_) => DataKind::SineSweep,
+        DatasetKind::Relaxation(_) => DataKind::Relaxation,
+        DatasetKind::Cyclic(_) => DataKind::Cyclic,
+    }
+}
+
+/// Rope name of a dataset.
+pub fn dataset_rope(ds: &Dataset) -> &str {
+    match &ds.kind {
+        DatasetKind::SineSweep(s) => &s.rig.rope,
+        DatasetKind::Relaxation(r) => &r.specimen.rope,
+        DatasetKind::Cyclic(c) => &c.specimen.rope,
+    }
+}
+
+fn catalog_rope(name: &str) -> Result<RopeParams, String> {
+    Catalog::builtin()
+        .get(name)
+        .cloned()
+        .map_err(|e| e.to_string())
+}
+
+/// What a model could not be built from.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ModelError {
+    /// A model file problem, located.
+    #[error("{0}")]
+    File(#[from] ScenarioError),
+    /// Anything else.
+    #[error("{0}")]
+    Other(String),
+}
+
+impl Model {
+    /// The paper's model of the dataset (the baseline): four-element for fiber ropes,
+    /// elastic for steel; sweeps fit one global `k1_scale`; relaxation and cyclic tests
+    /// fit the law's constants (k1, c2, k3, c3 as in the paper, or k1 alone if elastic).
+    pub fn baseline(ds: &Dataset) -> Result<Model, ModelError> {
+        let rope = dataset_rope(ds).to_string();
+        let params = catalog_rope(&rope).map_err(ModelError::Other)?;
+        let law_kind = LawKind::default_for(&params);
+        let law = RopeLaw::from_params(&params, law_kind)
+            .map_err(|e| ModelError::Other(e.to_string()))?;
+        let base = match ds.kind {
+            DatasetKind::SineSweep(_) => vec![ParamDef::fitted("k1_scale", "1", 1.0, 0.2, 5.0)],
+            _ => law_constants(&law),
+        };
+        Ok(Model {
+            rope,
+            law_kind,
+            law,
+            base,
+            effects: Vec::new(),
+        })
+    }
+
+    /// Every fitted parameter slot: `(index in base or effect, param index, run)`.
+    pub fn free_slots(&self, n_runs: usize) -> Vec<Slot> {
+        let mut out = Vec::new();
+        let all = self
+            .base
+            .iter()
+            .enumerate()
+            .map(|(j, p)| (Owner::Base, j, p))
+            .chain(self.effects.iter().enumerate().flat_map(|(e, u)| {
+                u.params
+                    .iter()
+                    .enumerate()
+                    .map(move |(j, p)| (Owner::Effect(e), j, p))
+            }));
+        for (owner, j, p) in all {
+            if !p.fit {
+                continue;
+            }
+            if p.per_run {
+                for r in 0..n_runs {
+                    out.push(Slot {
+                        owner,
+                        index: j,
+                        run: Some(r),
+                    });
+                }
+            } else {
+                out.push(Slot {
+                    owner,
+                    index: j,
+                    run: None,
+                });
+            }
+        }
+        out
+    }
+
+    fn param(&self, s: &Slot) -> &ParamDef {
+        match s.owner {
+            Owner::Base => &self.base[s.index],
+            Owner::Effect(e) => &self.effects[e].params[s.index],
+        }
+    }
+
+    fn param_mut(&mut self, s: &Slot) -> &mut ParamDef {
+        match s.owner {
+            Owner::Base => &mut self.base[s.index],
+            Owner::Effect(e) => &mut self.effects[e].params[s.index],
+        }
+    }
+
+    /// Fitting specs of the free slots (starting at the current values).
+    pub fn fit_specs(&self, n_runs: usize) -> Vec<ParamSpec> {
+        self.free_slots(n_runs)
+            .iter()
+            .map(|s| {
+                let p = self.param(s);
+                let name = match s.run {
+                    Some(r) => format!("{}[{}]", p.name, r),
+                    None => p.name.clone(),
+                };
+                let v0 = s.run.map_or(p.value, |r| p.value_for(r));
+                let span = p.upper - p.lower;
+                let init = v0.clamp(p.lower + 1e-6 * span, p.upper - 1e-6 * span);
+                ParamSpec {
+                    name,
+                    unit: p.unit.clone(),
+                    initial: init,
+                    lower: p.lower,
+                    upper: p.upper,
+                    log_scale: p.log_scale && p.lower >= 0.0 && init > 0.0,
+                }
+            })
+            .collect()
+    }
+
+    /// The model with the free parameters set to `x` (in [`Self::free_slots`] order).
+    pub fn with_values(&self, x: &[f64], n_runs: usize) -> Model {
+        let mut m = self.clone();
+        for (s, &v) in self.free_slots(n_runs).iter().zip(x) {
+            let p = m.param_mut(s);
+            let v = v.clamp(p.lower, p.upper);
+            match s.run {
+                None => p.value = v,
+                Some(r) => {
+                    let vals = p.run_values.get_or_insert_with(|| vec![p.value; n_runs]);
+                    if r < vals.len() {
+                        vals[r] = v;
+                    }
+                }
+            }
+        }
+        m
+    }
+
+    /// Rope law (and rig damping override) of run `run`.
+    pub fn law_for_run(&self, run: usize) -> Result<(RopeLaw, Option<f64>), String> {
+        let mut law = self.law.clone();
+        let mut damping = None;
+        for p in &self.base {
+            let v = p.value_for(run);
+            match p.name.as_str() {
+                "k1_scale" => law.k1_n *= v,
+                "k1" => law.k1_n = v,
+                "c1" => law.c1_n_s = v,
+                "c2" => law.c2_n_s = Some(v),
+                "k3" | "c3" => {
+                    let el = law
+                        .kelvin
+                        .first_mut()
+                        .ok_or_else(|| format!("`{}` needs a four-element or Flory law", p.name))?;
+                    if p.name == "k3" {
+                        el.k_n = v;
+                    } else {
+                        el.c_n_s = v;
+                    }
+                }
+                "kp" => law.kp_n = Some(v),
+                "output_damping_n_m_s" => damping = Some(v),
+                other => return Err(format!("unknown base parameter `{other}`")),
+            }
+        }
+        for u in &self.effects {
+            let vals: Vec<f64> = u.params.iter().map(|p| p.value_for(run)).collect();
+            u.effect
+                .apply(&vals, &mut law, None)
+                .map_err(|e| format!("effect {}: {e}", u.effect.name()))?;
+        }
+        law.validate().map_err(|e| e.to_string())?;
+        Ok((law, damping))
+    }
+
+    /// The model plus `effect` with its default parameters, all fitted.
+    pub fn with_effect(&self, effect: &'static dyn Effect) -> Model {
+        let mut m = self.clone();
+        m.effects.push(EffectUse {
+            effect,
+            params: effect
+                .params()
+                .iter()
+                .map(|p| ParamDef {
+                    name: p.name.into(),
+                    unit: p.unit.into(),
+                    value: p.default,
+                    run_values: None,
+                    lower: p.lower,
+                    upper: p.upper,
+                    log_scale: p.log_scale,
+                    fit: true,
+                    per_run: false,
+                })
+                .collect(),
+        });
+        m
+    }
+
+    /// True when the model already holds `effect` (in its list or in its law).
+    pub fn has_effect(&self, effect: &dyn Effect) -> bool {
+        self.effects
+            .iter()
+            .any(|u| u.effect.name() == effect.name())
+            || self
+                .law_for_run(0)
+                .is_ok_and(|(l, _)| effect.present_in(&l))
+    }
+
+    /// Named values of every parameter (per-run ones as `name[run]`), sorted by name.
+    pub fn named_values(&self) -> Vec<(String, f64)> {
+        let mut out = Vec::new();
+        let all = self
+            .base
+            .iter()
+            .chain(self.effects.iter().flat_map(|u| u.params.iter()));
+        for p in all {
+            match &p.run_values {
+                Some(v) if p.per_run => {
+                    for (r, x) in v.iter().enumerate() {
+                        out.push((format!("{}[{}]", p.name, r), *x));
+                    }
+                }
+                _ => out.push((p.name.clone(), p.value)),
+            }
+        }
+        out
+    }
+
+    /// The model as a model file (TOML text).
+    pub fn to_toml(&self, comment: &str) -> String {
+        let mut s = String::new();
+        for line in comment.lines() {
+            s.push_str(&format!("# {line}\n"));
+        }
+        s.push_str(&format!(
+            "rope = \"{}\"\nlaw = \"{}\"\n",
+            self.rope,
+            self.law_kind.as_str()
+        ));
+        let param = |s: &mut String, prefix: &str, p: &ParamDef| {
+            s.push_str(&format!("\n[{prefix}.{}]\n", p.name));
+            s.push_str(&format!("value = {:e}\n", p.value));
+            if let Some(v) = &p.run_values {
+                let list: Vec<String> = v.iter().map(|x| format!("{x:e}")).collect();
+                s.push_str(&format!("run_values = [{}]\n", list.join(", ")));
+            }
+            s.push_str(&format!(
+                "fit = {}\nlower = {:e}\nupper = {:e}\nper_run = {}\n",
+                p.fit, p.lower, p.upper, p.per_run
+            ));
+        };
+        for p in &self.base {
+            param(&mut s, "params", p);
+        }
+        for u in &self.effects {
+            s.push_str(&format!("\n[[effect]]\nname = \"{}\"\n", u.effect.name()));
+            for p in &u.params {
+                param(&mut s, "effect.params", p);
+            }
+        }
+        s
+    }
+
+    /// Reads a model file. `ds` supplies the default rope and baseline parameters.
+    pub fn from_toml(text: &str, file: &str, ds: &Dataset) -> Result<Model, ModelError> {
+        let doc: toml::Table = text
+            .parse()
+            .map_err(|e: toml::de::Error| longreach_scenario::spec::toml_error(text, file, &e))?;
+        let err = |field: &str, msg: String, fix: &str| {
+            ModelError::File(field_error(text, file, field, msg, fix))
+        };
+        for key in doc.keys() {
+            if !["rope", "law", "params", "effect"].contains(&key.as_str()) {
+                return Err(err(
+                    key,
+                    format!("unknown key `{key}`"),
+                    "a model file holds rope, law, [params.NAME] tables and [[effect]] tables (docs/models.md)",
+                ));
+            }
+        }
+        let rope = match doc.get("rope") {
+            None => dataset_rope(ds).to_string(),
+            Some(toml::Value::String(s)) => s.clone(),
+            Some(_) => {
+                return Err(err(
+                    "rope",
+                    "must be a catalog name in quotes".into(),
+                    "write rope = \"dyneema2\"",
+                ))
+            }
+        };
+        let params = catalog_rope(&rope)
+            .map_err(|e| err("rope", e, "use a name listed by `longreach ropes`"))?;
+        let law_kind = match doc.get("law") {
+            None => LawKind::default_for(&params),
+            Some(toml::Value::String(s)) => match s.as_str() {
+                "elastic" => LawKind::Elastic,
+                "four_element" => LawKind::FourElement,
+                "flory" => LawKind::Flory,
+                _ => {
+                    return Err(err(
+                        "law",
+                        format!("unknown law `{s}`"),
+                        "use elastic, four_element or flory",
+                    ))
+                }
+            },
+            Some(_) => {
+                return Err(err(
+                    "law",
+                    "must be a string".into(),
+                    "use law = \"four_element\"",
+                ))
+            }
+        };
+        let law = RopeLaw::from_params(&params, law_kind).map_err(|e| {
+            err(
+                "law",
+                e.to_string(),
+                "choose a law the rope has constants for",
+            )
+        })?;
+        let mut base = Vec::new();
+        if let Some(v) = doc.get("params") {
+            let t = v.as_table().ok_or_else(|| {
+                err(
+                    "params",
+                    "must be a table".into(),
+                    "write [params.k1_scale]",
+                )
+            })?;
+            for (name, val) in t {
+                let Some(&(_, unit)) = BASE_PARAMS.iter().find(|(n, _)| n == name) else {
+                    return Err(err(
+                        &format!("params.{name}"),
+                        format!("unknown base parameter `{name}`"),
+                        &format!(
+                            "base parameters are {}",
+                            BASE_PARAMS
+                                .iter()
+                                .map(|p| p.0)
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ),
+                    ));
+                };
+                let (lo, hi) = if name == "k1_scale" {
+                    (0.2, 5.0)
+                } else {
+                    (0.0, f64::INFINITY)
+                };
+                base.push(parse_param(
+                    text,
+                    file,
+                    &format!("params.{name}"),
+                    name,
+                    unit,
+                    val,
+                    lo,
+                    hi,
+                    true,
+                )?);
+            }
+        } else {
+            base = Model::baseline(ds)?.base;
+        }
+        let mut effects_out = Vec::new();
+        if let Some(v) = doc.get("effect") {
+            let arr = v.as_array().ok_or_else(|| {
+                err(
+                    "effect",
+                    "must be an array of tables".into(),
+                    "write [[effect]] tables",
+                )
+            })?;
+            for (i, e) in arr.iter().enumerate() {
+                let path = format!("effect.{i}");
+                let t = e
+                    .as_table()
+                    .ok_or_else(|| err(&path, "must be a table".into(), "write [[effect]]"))?;
+                let name = t.get("name").and_then(|n| n.as_str()).ok_or_else(|| {
+                    err(
+                        &path,
+                        "an [[effect]] needs name = \"...\"".into(),
+                        &format!("registered effects: {}", effects::names().join(", ")),
+                    )
+                })?;
+                let effect = effects::find(name).ok_or_else(|| {
+                    err(
+                        &format!("{path}.name"),
+                        format!("unknown effect `{name}`"),
+                        &format!("registered effects: {}", effects::names().join(", ")),
+                    )
+                })?;
+                let given = t
+                    .get("params")
+                    .and_then(|p| p.as_table())
+                    .cloned()
+                    .unwrap_or_default();
+                for k in given.keys() {
+                    if !effect.params().iter().any(|p| p.name == k) {
+                        return Err(err(
+                            &format!("{path}.params.{k}"),
+                            format!("effect `{name}` has no parameter `{k}`"),
+                            &format!(
+                                "its parameters: {}",
+                                effect
+                                    .params()
+                                    .iter()
+                                    .map(|p| p.name)
+                                    .collect::<Vec<_>>()
+                                    .join(", ")
+                            ),
+                        ));
+                    }
+                }
+                let mut ps = Vec::new();
+                for spec in effect.params() {
+                    let p = match given.get(spec.name) {
+                        Some(val) => {
+                            let mut p = parse_param(
+                                text,
+                                file,
+                                &format!("{path}.params.{}", spec.name),
+                                spec.name,
+                                spec.unit,
+                                val,
+                                spec.lower,
+                                spec.upper,
+                                false,
+                            )?;
+                            p.log_scale = spec.log_scale;
+                            p
+                        }
+                        None => ParamDef {
+                            name: spec.name.into(),
+                            unit: spec.unit.into(),
+                            value: spec.default,
+                            run_values: None,
+                            lower: spec.lower,
+                            upper: spec.upper,
+                            log_scale: spec.log_scale,
+                            fit: true,
+                            per_run: false,
+                        },
+                    };
+                    ps.push(p);
+                }
+                effects_out.push(EffectUse { effect, params: ps });
+            }
+        }
+        let m = Model {
+            rope,
+            law_kind,
+            law,
+            base,
+            effects: effects_out,
+        };
+        m.law_for_run(0)
+            .map_err(|e| err("effect", e, "correct the parameter values"))?;
+        Ok(m)
+    }
+}
+
+/// The four constants of the law (or k1 alone), fitted on a log scale within a decade.
+fn law_constants(law: &RopeLaw) -> Vec<ParamDef> {
+    let mut out = vec![ParamDef::fitted(
+        "k1",
+        "N",
+        law.k1_n,
+        law.k1_n / 10.0,
+        law.k1_n * 10.0,
+    )];
+    if let Some(c2) = law.c2_n_s {
+        out.push(ParamDef::fitted("c2", "N*s", c2, c2 / 10.0, c2 * 10.0));
+    }
+    if let Some(k) = law.kelvin.first() {
+        out.push(ParamDef::fitted(
+            "k3",
+            "N",
+            k.k_n,
+            k.k_n / 10.0,
+            k.k_n * 10.0,
+        ));
+        out.push(ParamDef::fitted(
+            "c3",
+            "N*s",
+            k.c_n_s,
+            k.c_n_s / 10.0,
+            k.c_n_s * 10.0,
+        ));
+    }
+    out
+}
+
+fn parse_param(
+    text: &str,
+    file: &str,
+    path: &str,
+    name: &str,
+    unit: &str,
+    val: &toml::Value,
+    lower: f64,
+    upper: f64,
+    log_scale: bool,
+) -> Result<ParamDef, ModelError> {
+    let err = |msg: String| {
+        ModelError::File(field_error(
+            text,
+            file,
+            path,
+            msg,
+            "give a number (known) or a table { value, fit, lower, upper, per_run }",
+        ))
+    };
+    let num = |v: &toml::Value| v.as_float().or_else(|| v.as_integer().map(|i| i as f64));
+    let mut p = ParamDef {
+        name: name.into(),
+        unit: unit.into(),
+        value: f64::NAN,
+        run_values: None,
+        lower,
+        upper,
+        log_scale,
+        fit: false,
+        per_run: false,
+    };
+    match val {
+        toml::Value::Table(t) => {
+            for k in t.keys() {
+                if !["value", "fit", "lower", "upper", "per_run", "run_values"]
+                    .contains(&k.as_str())
+                {
+                    return Err(err(format!("unknown key `{k}`")));
+                }
+            }
+            p.value = t
+                .get("value")
+                .and_then(num)
+                .ok_or_else(|| err("needs value = <number>".into()))?;
+            p.fit = t.get("fit").and_then(|v| v.as_bool()).unwrap_or(false);
+            p.per_run = t.get("per_run").and_then(|v| v.as_bool()).unwrap_or(false);
+            if let Some(v) = t.get("lower") {
+                p.lower = num(v).ok_or_else(|| err("lower must be a number".into()))?;
+            }
+            if let Some(v) = t.get("upper") {
+                p.upper = num(v).ok_or_else(|| err("upper must be a number".into()))?;
+            }
+            if let Some(v) = t.get("run_values") {
+                let a = v
+                    .as_array()
+                    .ok_or_else(|| err("run_values must be a list of numbers".into()))?;
+                let vals: Option<Vec<f64>> = a.iter().map(num).collect();
+                p.run_values =
+                    Some(vals.ok_or_else(|| err("run_values must be a list of numbers".into()))?);
+            }
+        }
+        v => p.value = num(v).ok_or_else(|| err("must be a number or a table".into()))?,
+    }
+    if !(p.value.is_finite() && p.lower <= p.value && p.value <= p.upper && p.lower < p.upper) {
+        return Err(err(format!(
+            "value {} outside its bounds [{}, {}] {unit}",
+            p.value, p.lower, p.upper
+        )));
+    }
+    if p.log_scale && p.lower <= 0.0 && p.fit {
+        p.lower = p.value * 1e-3;
+    }
+    Ok(p)
+}
+
+/// Who owns a parameter slot.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Owner {
+    /// A base parameter.
+    Base,
+    /// The parameters of effect number `n`.
+    Effect(usize),
+}
+
+/// One fitted value: parameter `index` of `owner`, for run `run` (per-run) or all runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Slot {
+    /// Owner.
+    pub owner: Owner,
+    /// Parameter index within the owner.
+    pub index: usize,
+    /// Run of a per-run parameter.
+    pub run: Option<usize>,
+}

@@ -1,0 +1,202 @@
+//! The measurement loop on the example datasets and on synthetic data with a known
+//! answer: fit, compare, diagnose, synth, model files.
+//!
+//! Heavier studies are `#[ignore]`d; run them with
+//! `cargo test -p longreach-ident --release --test loop -- --ignored --nocapture`.
+
+use std::path::PathBuf;
+
+use longreach_drive::effects::{self, DataKind};
+use longreach_ident::analysis::{compare, diagnose, fit_model, Prepared};
+use longreach_ident::model::Model;
+use longreach_ident::synth::{self, RelaxationOptions};
+use longreach_ident::Dataset;
+use longreach_rope::Catalog;
+
+fn example(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../data/examples")
+        .join(name)
+}
+
+#[test]
+fn registry_has_the_issue_effects_with_valid_params() {
+    for name in [
+        "nonlinear_stiffness",
+        "internal_damping",
+        "extra_retardation",
+        "nonlinear_creep",
+        "plastic_ratchet",
+    ] {
+        let e = effects::find(name).unwrap_or_else(|| panic!("{name} not registered"));
+        assert!(e.doc().len() > 100, "{name} needs a paragraph of physics");
+        for p in e.params() {
+            assert!(
+                p.lower < p.default && p.default < p.upper,
+                "{name}.{}",
+                p.name
+            );
+        }
+    }
+    // apply sets the law's fields, and bounds are enforced
+    let p = Catalog::builtin().get("dyneema2").unwrap().clone();
+    let mut law =
+        longreach_rope::RopeLaw::from_params(&p, longreach_rope::LawKind::FourElement).unwrap();
+    effects::find("nonlinear_stiffness")
+        .unwrap()
+        .apply(&[2e-3], &mut law, None)
+        .unwrap();
+    assert!((law.stiffening_per_n - 2e-3).abs() < 1e-18);
+    effects::find("extra_retardation")
+        .unwrap()
+        .apply(&[2e5, 2e6], &mut law, None)
+        .unwrap();
+    assert_eq!(law.kelvin.len(), 2);
+    assert!((law.kelvin[1].c_n_s / law.kelvin[1].k_n - 10.0).abs() < 1e-12);
+    let err = effects::find("internal_damping")
+        .unwrap()
+        .apply(&[-1.0], &mut law, None);
+    assert!(err
+        .unwrap_err()
+        .to_string()
+        .contains("internal_damping.c1_n_s"));
+    assert!(!effects::find("plastic_ratchet")
+        .unwrap()
+        .applies_to(DataKind::SineSweep));
+}
+
+#[test]
+fn sweep_control_baseline_is_at_the_noise_floor() {
+    let ds = Dataset::load(example("example_sweep_control")).unwrap();
+    let prep = Prepared::new(&ds).unwrap();
+    let base = Model::baseline(&ds).unwrap();
+    // compare at the catalog constants (no fit)
+    let sims = prep.simulate(&base).unwrap();
+    let c = compare(&prep, &base, &sims).unwrap();
+    assert!(
+        c.nrmse <= 1.1 * c.noise_floor_nrmse,
+        "{} vs floor {}",
+        c.nrmse,
+        c.noise_floor_nrmse
+    );
+    // the floor is the encoder's q/sqrt(12) over the output's spread
+    assert!(c.noise_floor_nrmse > 0.005 && c.noise_floor_nrmse < 0.02);
+    assert_eq!(c.runs.len(), 5);
+    let share: f64 = c.runs.iter().map(|r| r.share).sum();
+    assert!((share - 1.0).abs() < 1e-9);
+    // fitted global stiffness scale: the catalog's k1
+    let f = fit_model(&prep, &base).unwrap();
+    let (k, se) = f.fit.as_ref().unwrap().get("k1_scale").unwrap();
+    assert!((k - 1.0).abs() < 2e-3 && se < 1e-3, "k1_scale {k} +- {se}");
+}
+
+#[test]
+fn relaxation_control_fit_matches_the_catalog() {
+    let ds = Dataset::load(example("example_relax_control")).unwrap();
+    let prep = Prepared::new(&ds).unwrap();
+    let f = fit_model(&prep, &Model::baseline(&ds).unwrap()).unwrap();
+    let cat = Catalog::builtin().get("dyneema2").unwrap().clone();
+    let r = f.fit.as_ref().unwrap();
+    let rel = |name: &str, truth: f64| (r.get(name).unwrap().0 / truth - 1.0).abs();
+    assert!(rel("k1", cat.k1_n) < 0.05);
+    assert!(rel("c2", cat.c2_n_s.unwrap()) < 0.05);
+    assert!(rel("k3", cat.k3_n.unwrap()) < 0.05);
+    // c3 comes out 6.1% low (2.6 standard errors): the data's noise limits it; see the
+    // report in docs/models.md.
+    assert!(rel("c3", cat.c3_n_s.unwrap()) < 0.08);
+    assert!(
+        f.nrmse <= 1.05 * f.noise_floor,
+        "{} vs {}",
+        f.nrmse,
+        f.noise_floor
+    );
+    // eq. 7 RMS near the 2 N noise of the example
+    let rms = r.rms();
+    assert!(rms > 1.8 && rms < 2.2, "rms {rms}");
+}
+
+fn short_relaxation(model: &Model, seed: u64) -> Dataset {
+    let mut opt = RelaxationOptions::paper("dyneema2", seed);
+    opt.duration_s = 200.0;
+    let d = synth::relaxation(model, &opt).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("ds");
+    d.write(&path, "synthetic").unwrap();
+    Dataset::load(&path).unwrap()
+}
+
+fn relax_base() -> Model {
+    let ds = Dataset::load(example("example_relax_control")).unwrap();
+    Model::baseline(&ds).unwrap()
+}
+
+#[test]
+fn small_confusion_matrix_relaxation() {
+    // control -> null; a hidden second retardation time -> extra_retardation.
+    let base = relax_base();
+    let control = short_relaxation(&base, 11);
+    let prep = Prepared::new(&control).unwrap();
+    let (d, _, _) = diagnose(&prep, &base).unwrap();
+    assert_eq!(d.missing_effect, None, "{}", d.explanation);
+
+    let mut hidden = base.with_effect(effects::find("extra_retardation").unwrap());
+    hidden.effects[0].params[0].value = 1.5e5;
+    hidden.effects[0].params[1].value = 3e6;
+    let ds = short_relaxation(&hidden, 12);
+    let prep = Prepared::new(&ds).unwrap();
+    let (d, base_fit, winner) = diagnose(&prep, &base).unwrap();
+    assert_eq!(
+        d.missing_effect.as_deref(),
+        Some("extra_retardation"),
+        "{}",
+        d.explanation
+    );
+    assert_eq!(d.candidates[0].effect, "extra_retardation");
+    let after = winner.unwrap().nrmse;
+    // error falls: 3x lower or within 1.5x of the noise floor
+    assert!(after * 3.0 <= base_fit.nrmse || after <= 1.5 * base_fit.noise_floor);
+}
+
+#[test]
+fn model_file_round_trip_and_located_errors() {
+    let ds = Dataset::load(example("example_relax_control")).unwrap();
+    let m = relax_base().with_effect(effects::find("nonlinear_creep").unwrap());
+    let text = m.to_toml("test");
+    let back = Model::from_toml(&text, "m.toml", &ds).unwrap();
+    let sorted = |m: &Model| {
+        let mut v = m.named_values();
+        v.sort_by(|a, b| a.0.cmp(&b.0));
+        v
+    };
+    assert_eq!(sorted(&back), sorted(&m));
+    let bad = "rope = \"dyneema2\"\n\n[[effect]]\nname = \"nonlinear_creep\"\n[effect.params]\nexponent = 9.0\n";
+    let e = Model::from_toml(bad, "bad.toml", &ds)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("bad.toml:6") && e.contains("exponent"), "{e}");
+    let bad = "rope = \"dyneema2\"\n[[effect]]\nname = \"magic\"\n";
+    let e = Model::from_toml(bad, "bad.toml", &ds)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("bad.toml:3") && e.contains("nonlinear_stiffness"),
+        "{e}"
+    );
+}
+
+/// Issue 3's acceptance on the example sweeps (about 1-2 min each on 2 cores).
+#[test]
+#[ignore]
+fn examples_diagnose() {
+    let ds = Dataset::load(example("example_sweep_control")).unwrap();
+    let prep = Prepared::new(&ds).unwrap();
+    let (d, _, _) = diagnose(&prep, &Model::baseline(&ds).unwrap()).unwrap();
+    assert_eq!(d.missing_effect, None);
+    assert!(d.baseline.nrmse <= 1.5 * d.baseline.noise_floor_nrmse);
+
+    let ds = Dataset::load(example("example_sweep_stiffening")).unwrap();
+    let prep = Prepared::new(&ds).unwrap();
+    let (d, base, w) = diagnose(&prep, &Model::baseline(&ds).unwrap()).unwrap();
+    assert_eq!(d.missing_effect.as_deref(), Some("nonlinear_stiffness"));
+    assert!(w.unwrap().nrmse * 3.0 <= base.nrmse);
+}

@@ -1,0 +1,594 @@
+//! `longreach fit | compare | diagnose | synth`: the measurement loop (issue 3).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{anyhow, bail, Context, Result};
+use clap::{Args, ValueEnum};
+use comfy_table::Table;
+
+use longreach_drive::effects;
+use longreach_ident::analysis::{self, Comparison, Prepared};
+use longreach_ident::model::{Model, ParamDef};
+use longreach_ident::{synth, Dataset};
+use longreach_plot::{write_png, BodeCurve, Figure, Panel, Series, Style};
+
+use crate::output::{write_atomic, write_atomic_with};
+
+/// Arguments shared by fit, compare and diagnose.
+#[derive(Debug, Args)]
+pub struct DataArgs {
+    /// Dataset folder (holding dataset.toml, format longreach-measurement/1).
+    pub dataset: PathBuf,
+    /// Model file (TOML, docs/models.md); default: the paper's model of the dataset.
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Write the result as JSON to this file.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+/// `longreach fit`.
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    #[command(flatten)]
+    data: DataArgs,
+}
+
+/// `longreach compare`.
+#[derive(Debug, Args)]
+pub struct CompareArgs {
+    #[command(flatten)]
+    data: DataArgs,
+    /// Write pictures and report.md into this folder.
+    #[arg(long)]
+    report: Option<PathBuf>,
+}
+
+/// `longreach diagnose`.
+#[derive(Debug, Args)]
+pub struct DiagnoseArgs {
+    #[command(flatten)]
+    data: DataArgs,
+    /// Write pictures and report.md into this folder.
+    #[arg(long)]
+    report: Option<PathBuf>,
+    /// Write the baseline plus the winning effect, fitted, as a model file.
+    #[arg(long)]
+    write_model: Option<PathBuf>,
+}
+
+/// Kind of synthetic dataset.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum SynthKind {
+    /// Stepped-sine sweep of the paper's rig.
+    SineSweep,
+    /// Tension relaxation at constant strain.
+    Relaxation,
+}
+
+/// `longreach synth`.
+#[derive(Debug, Args)]
+pub struct SynthArgs {
+    /// Dataset kind.
+    #[arg(long, value_enum)]
+    kind: SynthKind,
+    /// Output dataset folder (written atomically).
+    #[arg(long)]
+    out: PathBuf,
+    /// Rope (catalog name) when no model is given.
+    #[arg(long, default_value = "dyneema2")]
+    rope: String,
+    /// Model file whose values generate the data (its rope overrides --rope).
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Hidden effect `name=v1,v2,..` (parameters in the effect's order; `name` alone
+    /// uses the defaults). Repeatable. `longreach synth --list-effects` lists them.
+    #[arg(long = "effect")]
+    effects: Vec<String>,
+    /// Mean tensions of the sweep runs [N].
+    #[arg(long, value_delimiter = ',', default_value = "49,147,294,392")]
+    tensions_n: Vec<f64>,
+    /// Input amplitude of the sweep runs [deg].
+    #[arg(long, default_value_t = 4.5)]
+    amplitude_deg: f64,
+    /// Leave out the tension channels of sweeps.
+    #[arg(long)]
+    no_tension: bool,
+    /// Strain of a relaxation test.
+    #[arg(long, default_value_t = 0.015)]
+    strain: f64,
+    /// Noise seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Title written into dataset.toml.
+    #[arg(long)]
+    title: Option<String>,
+}
+
+fn load(data: &DataArgs) -> Result<(Dataset, Model)> {
+    let ds = Dataset::load(&data.dataset)?;
+    let model = match &data.model {
+        None => Model::baseline(&ds).map_err(|e| anyhow!("{e}"))?,
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read model file {}", p.display()))?;
+            Model::from_toml(&text, &p.display().to_string(), &ds).map_err(|e| anyhow!("{e}"))?
+        }
+    };
+    Ok((ds, model))
+}
+
+fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
+    let text = serde_json::to_string_pretty(value)?;
+    write_atomic(path, text.as_bytes())
+}
+
+fn fmt(x: f64) -> String {
+    if x == 0.0 || (1e-3..1e5).contains(&x.abs()) {
+        format!("{x:.5}")
+    } else {
+        format!("{x:.5e}")
+    }
+}
+
+/// Runs `fit`.
+pub fn run_fit(a: &FitArgs) -> Result<ExitCode> {
+    let (ds, model) = load(&a.data)?;
+    let prep = Prepared::new(&ds).map_err(|e| anyhow!(e))?;
+    let f = analysis::fit_model(&prep, &model).map_err(|e| anyhow!(e))?;
+    let mut table = Table::new();
+    table.set_header(vec!["parameter", "value", "std error", "unit"]);
+    let mut params = BTreeMap::new();
+    if let Some(r) = &f.fit {
+        let specs = model.fit_specs(prep.runs.len());
+        for ((n, v), (se, s)) in r
+            .names
+            .iter()
+            .zip(&r.values)
+            .zip(r.std_errors.iter().zip(&specs))
+        {
+            table.add_row(vec![n.clone(), fmt(*v), fmt(*se), s.unit.clone()]);
+            params.insert(
+                n.clone(),
+                serde_json::json!({"value": v, "std_error": se, "unit": s.unit}),
+            );
+        }
+    }
+    println!("{table}");
+    let unit = if prep.kind == effects::DataKind::SineSweep {
+        "rad"
+    } else {
+        "N"
+    };
+    let rms_before =
+        f.nrmse_before / f.nrmse.max(f64::MIN_POSITIVE) * (f.ssr / prep.n_samples() as f64).sqrt();
+    let rms_after = (f.ssr / prep.n_samples() as f64).sqrt();
+    println!(
+        "NRMSE before {:.5}, after {:.5} (noise floor {:.5}); RMS error (eq. 7) before {} {unit}, after {} {unit}",
+        f.nrmse_before, f.nrmse, f.noise_floor, fmt(rms_before), fmt(rms_after)
+    );
+    if let Some(p) = &a.data.json {
+        write_json(
+            p,
+            &serde_json::json!({
+                "dataset": ds.title,
+                "params": params,
+                "nrmse_before": f.nrmse_before,
+                "nrmse": f.nrmse,
+                "noise_floor_nrmse": f.noise_floor,
+                "rms_before": rms_before,
+                "rms": rms_after,
+                "rms_unit": unit,
+                "converged": f.fit.as_ref().map(|r| r.converged),
+            }),
+        )?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn print_comparison(c: &Comparison) {
+    let mut t = Table::new();
+    t.set_header(vec![
+        "run",
+        "mean tension [N]",
+        "NRMSE",
+        "noise floor",
+        "share of error",
+    ]);
+    for r in &c.runs {
+        t.add_row(vec![
+            r.run.clone(),
+            r.mean_tension_n.map_or("-".into(), |x| format!("{x:.0}")),
+            format!("{:.4}", r.nrmse),
+            format!("{:.4}", r.noise_floor_nrmse),
+            format!("{:.1}%", 100.0 * r.share),
+        ]);
+    }
+    println!("{t}");
+    println!(
+        "overall NRMSE {:.4} (noise floor {:.4}, {:.2}x)",
+        c.nrmse,
+        c.noise_floor_nrmse,
+        c.nrmse / c.noise_floor_nrmse.max(f64::MIN_POSITIVE)
+    );
+    let mut w = Table::new();
+    w.set_header(vec![
+        "where it fails: run",
+        "frequency [Hz]",
+        "window [s]",
+        "share",
+    ]);
+    for p in c.where_.iter().take(5) {
+        w.add_row(vec![
+            p.run.clone(),
+            p.frequency_hz.map_or("-".into(), |f| format!("{f:.2}")),
+            format!("{:.1}-{:.1}", p.start_s, p.end_s),
+            format!("{:.1}%", 100.0 * p.share),
+        ]);
+    }
+    println!("{w}");
+    let r = &c.residual;
+    println!(
+        "residual: Ljung-Box p = {:.3}, corr(input) = {:.3}, corr(sign velocity) = {:.3}, corr(mean tension) = {}, harmonics 2f {:.2}% 3f {:.2}%, corr(time) = {:.3}",
+        r.ljung_box_p,
+        r.corr_input,
+        r.corr_velocity_sign,
+        r.corr_mean_tension.map_or("-".into(), |x| format!("{x:.3}")),
+        100.0 * r.harmonic_2f,
+        100.0 * r.harmonic_3f,
+        r.corr_time
+    );
+}
+
+/// Runs `compare`: simulates the model at its values (no fitting).
+pub fn run_compare(a: &CompareArgs) -> Result<ExitCode> {
+    let (ds, model) = load(&a.data)?;
+    let prep = Prepared::new(&ds).map_err(|e| anyhow!(e))?;
+    let sims = prep.simulate(&model).map_err(|e| anyhow!(e))?;
+    let c = analysis::compare(&prep, &model, &sims).map_err(|e| anyhow!(e))?;
+    print_comparison(&c);
+    if let Some(p) = &a.data.json {
+        write_json(p, &c)?;
+    }
+    if let Some(dir) = &a.report {
+        write_report(dir, &prep, &c, &sims, None)?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Runs `diagnose`.
+pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
+    let (ds, model) = load(&a.data)?;
+    let prep = Prepared::new(&ds).map_err(|e| anyhow!(e))?;
+    let (d, base, winner) = analysis::diagnose(&prep, &model).map_err(|e| anyhow!(e))?;
+    println!(
+        "baseline NRMSE {:.4} (noise floor {:.4})",
+        d.baseline.nrmse, d.baseline.noise_floor_nrmse
+    );
+    let mut t = Table::new();
+    t.set_header(vec![
+        "rank",
+        "effect",
+        "NRMSE",
+        "score (dBIC)",
+        "explains",
+        "decisive",
+    ]);
+    for (i, c) in d.candidates.iter().enumerate() {
+        t.add_row(vec![
+            (i + 1).to_string(),
+            c.effect.clone(),
+            format!("{:.4}", c.nrmse),
+            format!("{:.1}", c.score),
+            format!("{:.0}%", 100.0 * c.explained.clamp(0.0, 1.0)),
+            c.decisive.to_string(),
+        ]);
+    }
+    println!("{t}");
+    println!(
+        "missing effect: {}",
+        d.missing_effect.as_deref().unwrap_or("none found")
+    );
+    println!("{}", d.explanation);
+    if let Some(p) = &a.data.json {
+        write_json(p, &d)?;
+    }
+    if let Some(p) = &a.write_model {
+        let m = winner.as_ref().map_or(&base.model, |w| &w.model);
+        let comment = format!(
+            "written by `longreach diagnose` for dataset {}\nbaseline NRMSE {:.5}; with {}: {}",
+            ds.title,
+            d.baseline.nrmse,
+            d.missing_effect.as_deref().unwrap_or("no effect"),
+            d.nrmse_after.map_or("-".into(), |x| format!("{x:.5}"))
+        );
+        write_atomic(p, m.to_toml(&comment).as_bytes())?;
+    }
+    if let Some(dir) = &a.report {
+        let m = winner.as_ref().map_or(&base, |w| w);
+        write_report(dir, &prep, &d.comparison, &base.sims, Some((&d, &m.sims)))?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn parse_effect(s: &str) -> Result<(&'static dyn effects::Effect, Vec<f64>)> {
+    let (name, vals) = s.split_once('=').unwrap_or((s, ""));
+    let e = effects::find(name.trim()).ok_or_else(|| {
+        anyhow!(
+            "unknown effect `{name}`; registered effects: {}",
+            effects::names().join(", ")
+        )
+    })?;
+    let v: Vec<f64> = if vals.trim().is_empty() {
+        e.params().iter().map(|p| p.default).collect()
+    } else {
+        vals.split(',')
+            .map(|x| x.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .with_context(|| format!("--effect {s}: parameters must be numbers"))?
+    };
+    if v.len() != e.params().len() {
+        bail!(
+            "--effect {s}: {} takes {} parameter(s): {}",
+            e.name(),
+            e.params().len(),
+            e.params()
+                .iter()
+                .map(|p| format!("{} [{}]", p.name, p.unit))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    Ok((e, v))
+}
+
+/// Runs `synth`.
+pub fn run_synth(a: &SynthArgs) -> Result<ExitCode> {
+    // A placeholder dataset only supplies the rope name for a model file's defaults.
+    let rope = a.rope.clone();
+    let mut model = match &a.model {
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read model file {}", p.display()))?;
+            let ds = placeholder_dataset(&rope);
+            Model::from_toml(&text, &p.display().to_string(), &ds).map_err(|e| anyhow!("{e}"))?
+        }
+        None => Model::baseline(&placeholder_dataset(&rope)).map_err(|e| anyhow!("{e}"))?,
+    };
+    for s in &a.effects {
+        let (e, v) = parse_effect(s)?;
+        let mut m = model.with_effect(e);
+        if let Some(u) = m.effects.last_mut() {
+            for (p, x) in u.params.iter_mut().zip(&v) {
+                *p = ParamDef {
+                    value: *x,
+                    fit: false,
+                    ..p.clone()
+                };
+            }
+        }
+        m.law_for_run(0).map_err(|e| anyhow!("--effect {s}: {e}"))?;
+        model = m;
+    }
+    let title = a.title.clone().unwrap_or_else(|| {
+        a.out
+            .file_name()
+            .map_or("synthetic".into(), |n| n.to_string_lossy().into_owned())
+    });
+    match a.kind {
+        SynthKind::SineSweep => {
+            let mut opt = synth::SweepOptions::paper(&model.rope, a.seed);
+            opt.runs = a
+                .tensions_n
+                .iter()
+                .map(|&t| (t, a.amplitude_deg.to_radians()))
+                .collect();
+            opt.tension_channels = !a.no_tension;
+            let d = synth::sweep(&model, &opt).map_err(|e| anyhow!(e))?;
+            d.write(&a.out, &title)?;
+        }
+        SynthKind::Relaxation => {
+            let mut opt = synth::RelaxationOptions::paper(&model.rope, a.seed);
+            opt.strain = a.strain;
+            let d = synth::relaxation(&model, &opt).map_err(|e| anyhow!(e))?;
+            d.write(&a.out, &title)?;
+        }
+    }
+    println!("wrote {}", a.out.display());
+    Ok(ExitCode::SUCCESS)
+}
+
+fn placeholder_dataset(rope: &str) -> Dataset {
+    Dataset {
+        dir: PathBuf::new(),
+        title: String::new(),
+        kind: longreach_ident::DatasetKind::Relaxation(longreach_ident::RelaxationDataset {
+            specimen: longreach_ident::RelaxationSpecimen {
+                rope: rope.to_string(),
+                length_m: 0.1,
+                strain: 0.015,
+            },
+            runs: Vec::new(),
+        }),
+    }
+}
+
+fn write_report(
+    dir: &Path,
+    prep: &Prepared<'_>,
+    c: &Comparison,
+    sims: &[Vec<f64>],
+    diag: Option<(&analysis::Diagnosis, &Vec<Vec<f64>>)>,
+) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let mut md = format!("# {} — model vs measurement\n\n", c.dataset);
+    md.push_str(&format!(
+        "Overall NRMSE **{:.4}** (noise floor {:.4}).\n\n| run | NRMSE | floor | share |\n|---|---|---|---|\n",
+        c.nrmse, c.noise_floor_nrmse
+    ));
+    for r in &c.runs {
+        md.push_str(&format!(
+            "| {} | {:.4} | {:.4} | {:.1}% |\n",
+            r.run,
+            r.nrmse,
+            r.noise_floor_nrmse,
+            100.0 * r.share
+        ));
+    }
+    if let Some((d, _)) = diag {
+        md.push_str(&format!(
+            "\n## Diagnosis\n\nMissing effect: **{}**\n\n{}\n\n| effect | NRMSE | score | explains |\n|---|---|---|---|\n",
+            d.missing_effect.as_deref().unwrap_or("none found"),
+            d.explanation
+        ));
+        for k in &d.candidates {
+            md.push_str(&format!(
+                "| {} | {:.4} | {:.1} | {:.0}% |\n",
+                k.effect,
+                k.nrmse,
+                k.score,
+                100.0 * k.explained.clamp(0.0, 1.0)
+            ));
+        }
+    }
+    md.push_str("\n## Pictures\n\n");
+    // Bode per run (sweeps)
+    for run in &prep.runs {
+        let pts: Vec<_> = c.frequency.iter().filter(|f| f.run == run.name).collect();
+        if pts.is_empty() {
+            continue;
+        }
+        let f: Vec<f64> = pts.iter().map(|p| p.frequency_hz).collect();
+        let curves = vec![
+            BodeCurve {
+                label: "measured".into(),
+                frequency_hz: f.clone(),
+                gain_db: pts.iter().map(|p| p.gain_measured_db).collect(),
+                phase_deg: longreach_drive::freq::unwrap_deg(
+                    &pts.iter().map(|p| p.phase_measured_deg).collect::<Vec<_>>(),
+                ),
+                style: Style::LineMarkers,
+                color: 0,
+            },
+            BodeCurve {
+                label: "model".into(),
+                frequency_hz: f,
+                gain_db: pts.iter().map(|p| p.gain_model_db).collect(),
+                phase_deg: longreach_drive::freq::unwrap_deg(
+                    &pts.iter().map(|p| p.phase_model_deg).collect::<Vec<_>>(),
+                ),
+                style: Style::DashedLine,
+                color: 1,
+            },
+        ];
+        let title = format!("{} {}: measured vs model", c.dataset, run.name);
+        let name = format!("bode_{}.png", run.name);
+        let fig = longreach_plot::bode_figure(&title, &curves);
+        write_atomic_with(&dir.join(&name), |p| Ok(write_png(&fig, p)?))?;
+        md.push_str(&format!("![{name}]({name})\n"));
+    }
+    // worst window overlay
+    if let Some(w) = c.worst_windows.first() {
+        if let Some(ri) = prep.runs.iter().position(|r| r.name == w.run) {
+            let run = &prep.runs[ri];
+            let idx: Vec<usize> = (0..run.time_s.len())
+                .filter(|&i| run.time_s[i] >= w.start_s && run.time_s[i] <= w.end_s)
+                .collect();
+            let t: Vec<f64> = idx.iter().map(|&i| run.time_s[i]).collect();
+            let mut series = vec![
+                Series {
+                    label: "measured".into(),
+                    x: t.clone(),
+                    y: idx.iter().map(|&i| run.measured[i]).collect(),
+                    style: Style::Line,
+                    color: 0,
+                },
+                Series {
+                    label: "model".into(),
+                    x: t.clone(),
+                    y: idx.iter().map(|&i| sims[ri][i]).collect(),
+                    style: Style::DashedLine,
+                    color: 1,
+                },
+            ];
+            if let Some((d, after)) = diag {
+                if d.missing_effect.is_some() {
+                    series.push(Series {
+                        label: "model + effect".into(),
+                        x: t.clone(),
+                        y: idx.iter().map(|&i| after[ri][i]).collect(),
+                        style: Style::Line,
+                        color: 2,
+                    });
+                }
+            }
+            let fig = Figure {
+                title: format!(
+                    "worst window: {} {:.1}-{:.1} s ({:.0}% of the error)",
+                    w.run,
+                    w.start_s,
+                    w.end_s,
+                    100.0 * w.share
+                ),
+                x_label: "time [s]".into(),
+                log_x: false,
+                panels: vec![Panel {
+                    y_label: if prep.kind == effects::DataKind::SineSweep {
+                        "output angle [rad]".into()
+                    } else {
+                        "tension [N]".into()
+                    },
+                    series,
+                    y_range: None,
+                    log_y: false,
+                }],
+                width_px: 1000,
+                height_px: 500,
+            };
+            write_atomic_with(&dir.join("worst_window.png"), |p| Ok(write_png(&fig, p)?))?;
+            md.push_str("![worst window](worst_window.png)\n");
+        }
+    }
+    // residual spectrum of the run with the largest share
+    if let Some(ri) = c
+        .runs
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.share.total_cmp(&b.1.share))
+        .map(|x| x.0)
+    {
+        let run = &prep.runs[ri];
+        let res: Vec<f64> = (0..run.measured.len())
+            .map(|i| sims[ri][i] - run.measured[i])
+            .collect();
+        if let Ok((f, psd)) = longreach_ident::metrics::power_spectrum(&res, run.dt_s) {
+            let keep: Vec<usize> = (1..f.len()).filter(|&k| psd[k] > 0.0).collect();
+            let fig = Figure {
+                title: format!("residual spectrum, {}", run.name),
+                x_label: "frequency [Hz]".into(),
+                log_x: true,
+                panels: vec![Panel {
+                    y_label: "PSD [unit^2/Hz]".into(),
+                    series: vec![Series {
+                        label: "residual".into(),
+                        x: keep.iter().map(|&k| f[k]).collect(),
+                        y: keep.iter().map(|&k| psd[k]).collect(),
+                        style: Style::Line,
+                        color: 3,
+                    }],
+                    y_range: None,
+                    log_y: true,
+                }],
+                width_px: 1000,
+                height_px: 500,
+            };
+            write_atomic_with(&dir.join("residual_spectrum.png"), |p| {
+                Ok(write_png(&fig, p)?)
+            })?;
+            md.push_str("![residual spectrum](residual_spectrum.png)\n");
+        }
+    }
+    write_atomic(&dir.join("report.md"), md.as_bytes())
+}

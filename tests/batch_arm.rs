@@ -1,0 +1,83 @@
+//! Batches of long-reach arm scenarios (`longreach run` kind): the arm plugs into the
+//! batch runner, and a row's metrics equal a direct run of the same scenario.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn scenarios() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenarios")
+}
+
+#[test]
+fn arm_batch_rows_equal_direct_runs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let base = scenarios().join("arm_dyneema2_base_step.toml");
+    let batch = tmp.path().join("arm.toml");
+    std::fs::write(
+        &batch,
+        format!(
+            "base = {:?}\n[set]\n\"sim.duration_s\" = 1.0\n\
+             [[axis]]\npath = \"transmission_defaults.rope\"\nvalues = [\"dyneema2\", \"zylon2\"]\n",
+            base.display().to_string()
+        ),
+    )
+    .unwrap();
+    let out = tmp.path().join("out");
+    let o = Command::new(env!("CARGO_BIN_EXE_longreach"))
+        .args([
+            "batch",
+            batch.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let csv = std::fs::read_to_string(out.join("results.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(
+        header[..3],
+        ["index", "transmission_defaults.rope", "tip_error_m"]
+    );
+    let peak = header
+        .iter()
+        .position(|h| *h == "j1_peak_tension_n")
+        .unwrap();
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 2);
+    // The zylon2 scenario written by hand, run directly.
+    let text = std::fs::read_to_string(&base)
+        .unwrap()
+        .replace("duration_s = 10.0", "duration_s = 1.0")
+        .replacen("rope = \"dyneema2\"", "rope = \"zylon2\"", 1);
+    assert!(text.contains("duration_s = 1.0"));
+    let sc = longreach_arm::scenario::parse(&text, "by hand", &scenarios()).unwrap();
+    let (_, m) = longreach_arm::run::run(
+        &sc.arm,
+        sc.sim.duration_s,
+        sc.sim.output_every,
+        sc.sim.residual_window_s,
+        &mut |_, _| {},
+    )
+    .unwrap();
+    let row = &rows[1];
+    assert_eq!(row[1], "zylon2");
+    assert_eq!(
+        row[2].parse::<f64>().unwrap().to_bits(),
+        m.tip_error_m.to_bits()
+    );
+    let j1 = m.pairs.iter().find(|p| p.joint == "j1").unwrap();
+    assert_eq!(
+        row[peak].parse::<f64>().unwrap().to_bits(),
+        j1.peak_tension_n.to_bits()
+    );
+    // Different ropes give different tensions (the axis reached the model).
+    assert_ne!(rows[0][2], rows[1][2]);
+    assert_eq!(row[row.len() - 2], "ok");
+}
