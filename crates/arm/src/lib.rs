@@ -7,6 +7,12 @@
 //! - [`dynamics`]: recursive Newton-Euler on the spec: [`gravity_torques`],
 //!   [`energy`], mass matrix, inverse and forward dynamics.
 //! - [`generate`]: [`chain_urdf`], uniform planar chains for benchmarks.
+//! - [`transmission`]: rope pairs, relays, routing matrix `R`, motors.
+//! - [`system`]: [`DrivenArm`] / [`DrivenState`]: links + ropes + motors + servos,
+//!   integrated implicitly (trapezoidal rule, exact-hold ropes, Newton); see docs/arm.md.
+//! - [`fast`]: allocation-free kinematics, Newton-Euler and mass matrix for the step.
+//! - [`command`]: joint references (hold, step, trapezoid, sine, series).
+//! - [`scenario`]: arm scenario files -> [`DrivenArm`]; [`run`]: time series and metrics.
 
 pub mod command;
 pub mod dynamics;

@@ -76,3 +76,30 @@ fn errors_name_line_field_and_fix() {
     let err = parse(&bad, "t.toml", robots()).unwrap_err().to_string();
     assert!(err.contains("not proximal"), "{err}");
 }
+
+#[test]
+fn csv_command_is_read_and_interpolated() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("ref.csv"),
+        "time_s,angle_rad\n0.0,0.0\n1.0,0.2\n2.0,0.2\n",
+    )
+    .unwrap();
+    let urdf = robots().join("arm5/arm5.urdf");
+    let text = BASE
+        .replace(
+            "urdf = \"arm5/arm5.urdf\"",
+            &format!("urdf = {:?}", urdf.display().to_string()),
+        )
+        .replace(
+            "joint = \"q2\"",
+            "joint = \"q2\"\ncommand = { kind = \"csv\", file = \"ref.csv\" }",
+        );
+    let sc = parse(&text, "csv.toml", dir.path()).unwrap();
+    let c = &sc.arm.commands[1];
+    assert!((c.angle_rad(0.0, 0.5) - 0.1).abs() < 1e-12);
+    assert!((c.angle_rad(0.0, 3.0) - 0.2).abs() < 1e-12);
+    let bad = text.replace("ref.csv", "missing.csv");
+    let err = parse(&bad, "csv.toml", dir.path()).unwrap_err();
+    assert_eq!(err.field, "transmission.1.command.file");
+}
