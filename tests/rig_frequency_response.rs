@@ -100,7 +100,12 @@ fn simulated_matches_analytic_wherever_no_rope_goes_slack() {
 #[test]
 fn slack_lowers_the_peak_gain_as_measured() {
     let s = scenario("dyneema2");
-    let idx = |t: f64| s.rigs.iter().position(|r| (r.mean_tension_n - t).abs() < 1e-9).unwrap();
+    let idx = |t: f64| {
+        s.rigs
+            .iter()
+            .position(|r| (r.mean_tension_n - t).abs() < 1e-9)
+            .unwrap()
+    };
     let low = s.run_one(idx(49.0)).unwrap();
     let mid = s.run_one(idx(147.0)).unwrap();
     assert!(low.slack && !mid.slack);

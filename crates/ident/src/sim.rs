@@ -92,92 +92,14 @@ pub fn simulate_sweep(
     }
     st.input_rad = input_rad[0];
     push(&mut out, &st);
-    let nonlinear = !model.spec().law.is_linear();
     for w in input_rad.windows(2) {
         for k in 1..=substeps {
             let a = k as f64 / substeps as f64;
-            let theta = w[0] + a * (w[1] - w[0]);
-            if !(nonlinear && step_nonlinear(&model, &mut st, theta)) {
-                model.step(&mut st, theta)?;
-            }
+            model.step(&mut st, w[0] + a * (w[1] - w[0]))?;
         }
         push(&mut out, &st);
     }
     Ok(out)
-}
-
-/// One implicit step of the rig for non-linear rope laws (tension-dependent stiffness,
-/// non-linear creep): the same trapezoidal output pulley and constant-force carriage as
-/// [`RigModel::step`], solved by Newton's method to a tolerance the non-linear rope
-/// solve can meet (1e-12 rad, 1e-14 m). Returns false (state untouched) when Newton
-/// does not converge; the caller then takes the rig's own bracketed step.
-fn step_nonlinear(model: &RigModel, st: &mut longreach_drive::RigState, theta: f64) -> bool {
-    let s = model.spec();
-    if s.tensioner != DriveTensioner::ConstantForce {
-        return false;
-    }
-    let stepper = model.stepper();
-    let h = model.dt_s();
-    let (i_out, c_out, r1, r2, l) = (
-        s.output_inertia_kg_m2,
-        s.output_damping_n_m_s,
-        s.input_radius_m,
-        s.output_radius_m,
-        s.rope_length_m,
-    );
-    let prep = [stepper.prepare(&st.ropes[0]), stepper.prepare(&st.ropes[1])];
-    let (phi0, w0, a0) = (st.output_rad, st.output_rate_rad_s, st.output_accel_rad_s2);
-    let k_dyn = 4.0 * i_out / (h * h) + 2.0 * c_out / h;
-    let inertial = |phi: f64| {
-        let a1 = 4.0 * (phi - phi0) / (h * h) - 4.0 * w0 / h - a0;
-        let w1 = 2.0 * (phi - phi0) / h - w0;
-        i_out * a1 + c_out * w1
-    };
-    let strain = |i: usize, x: f64, phi: f64| {
-        let sign = if i == 0 { 1.0 } else { -1.0 };
-        (x + sign * (r1 * theta - r2 * phi)) / l
-    };
-    let two_t = 2.0 * s.mean_tension_n;
-    let mut phi = phi0 + h * w0 + 0.5 * h * h * a0;
-    let mut x = st.carriage_m;
-    let mut ok = false;
-    for _ in 0..30 {
-        let (f1, k1) = stepper.tension(&prep[0], strain(0, x, phi));
-        let (f2, k2) = stepper.tension(&prep[1], strain(1, x, phi));
-        let (k1, k2) = (k1 / l, k2 / l);
-        if k1 + k2 == 0.0 || !(f1.is_finite() && f2.is_finite()) {
-            return false;
-        }
-        let res_m = inertial(phi) - r2 * (f1 - f2);
-        let res_t = f1 + f2 - two_t;
-        let d11 = k_dyn + r2 * r2 * (k1 + k2);
-        let d12 = -r2 * (k1 - k2);
-        let d22 = k1 + k2;
-        let det = d11 * d22 - d12 * d12;
-        let dphi = -(d22 * res_m - d12 * res_t) / det;
-        let dx = -(d11 * res_t - d12 * res_m) / det;
-        phi += dphi;
-        x += dx;
-        if dphi.abs() <= 1e-12 * (1.0 + phi.abs()) && dx.abs() <= 1e-14 * (1.0 + x.abs()) {
-            ok = true;
-            break;
-        }
-    }
-    if !(ok && phi.is_finite() && x.is_finite()) {
-        return false;
-    }
-    for i in 0..2 {
-        stepper.commit(&prep[i], &mut st.ropes[i], strain(i, x, phi));
-    }
-    let w1 = 2.0 * (phi - phi0) / h - w0;
-    let a1 = 4.0 * (phi - phi0) / (h * h) - 4.0 * w0 / h - a0;
-    st.time_s += h;
-    st.input_rad = theta;
-    st.output_rad = phi;
-    st.output_rate_rad_s = w1;
-    st.output_accel_rad_s2 = a1;
-    st.carriage_m = x;
-    true
 }
 
 /// Simulates a sweep run of a dataset with `law`.

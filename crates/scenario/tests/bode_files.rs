@@ -23,7 +23,10 @@ fn shipped_scenarios_parse_with_the_papers_sweep() {
     for rope in ["dyneema2", "zylon2", "vectran2", "kevlar2", "stainless1"] {
         let s = BodeScenario::from_file(&dir.join(format!("bode_{rope}.toml"))).unwrap();
         let tensions: Vec<f64> = s.rigs.iter().map(|r| r.mean_tension_n).collect();
-        assert_eq!(tensions, (1..=8).map(|i| 49.0 * f64::from(i)).collect::<Vec<_>>());
+        assert_eq!(
+            tensions,
+            (1..=8).map(|i| 49.0 * f64::from(i)).collect::<Vec<_>>()
+        );
         assert!((s.sine.amplitude_rad - 4.5f64.to_radians()).abs() < 1e-15);
         assert_eq!(s.sine.frequencies_hz.first(), Some(&0.1));
         assert_eq!(s.sine.frequencies_hz.last(), Some(&6.0));
@@ -63,15 +66,44 @@ frequencies_hz = [1.0, 2.0]
 #[test]
 fn errors_name_the_field_and_the_fix() {
     let cases = [
-        (BASE.replace("amplitude_deg = 4.5", "amplitude_deg = 4.5\namplitude_rad = 0.1"), "exactly one of amplitude_rad and amplitude_deg"),
-        (BASE.replace("rope_length_m", "rope_lenght_m"), "unknown field `rope_lenght_m`"),
-        (BASE.replace("rope = \"dyneema2\"", "rope = \"stainless1\"\nlaw = \"four_element\""), "four_element law needs `k3`"),
-        (BASE.replace("[1.0, 2.0]", "[1.0, 0.0]"), "sweep.frequencies_hz"),
-        (BASE.replace("mean_tensions_n = [100.0]", "mean_tensions_n = []"), "sweep.mean_tensions_n"),
-        (BASE.replace("rope = \"dyneema2\"", "rope = 3"), "expected a rope name or an inline table"),
+        (
+            BASE.replace(
+                "amplitude_deg = 4.5",
+                "amplitude_deg = 4.5\namplitude_rad = 0.1",
+            ),
+            "exactly one of amplitude_rad and amplitude_deg",
+        ),
+        (
+            BASE.replace("rope_length_m", "rope_lenght_m"),
+            "unknown field `rope_lenght_m`",
+        ),
+        (
+            BASE.replace(
+                "rope = \"dyneema2\"",
+                "rope = \"stainless1\"\nlaw = \"four_element\"",
+            ),
+            "four_element law needs `k3`",
+        ),
+        (
+            BASE.replace("[1.0, 2.0]", "[1.0, 0.0]"),
+            "sweep.frequencies_hz",
+        ),
+        (
+            BASE.replace("mean_tensions_n = [100.0]", "mean_tensions_n = []"),
+            "sweep.mean_tensions_n",
+        ),
+        (
+            BASE.replace("rope = \"dyneema2\"", "rope = 3"),
+            "expected a rope name or an inline table",
+        ),
     ];
     for (text, expect) in cases {
-        let err = BodeScenario::from_str(&text, "case.toml").unwrap_err().to_string();
-        assert!(err.contains("case.toml") && err.contains(expect) && err.contains("fix:"), "{err}");
+        let err = BodeScenario::from_str(&text, "case.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("case.toml") && err.contains(expect) && err.contains("fix:"),
+            "{err}"
+        );
     }
 }
