@@ -72,7 +72,6 @@ pub const TWISTED_URDF: &str = r#"<?xml version="1.0"?>
 </robot>
 "#;
 
-use longreach_arm::transmission::{default_route, span_lengths_m};
 use longreach_arm::{
     load_urdf, ArmSpec, Command, DrivenArm, MotorMode, MotorSpec, PairSpec, TensionerKind,
 };
@@ -91,29 +90,9 @@ pub fn uniform_pairs(
 ) -> Vec<PairSpec> {
     let params = Catalog::builtin().get(rope).unwrap().clone();
     let law = RopeLaw::from_params(&params, kind).unwrap();
-    let radii = vec![r_m; spec.ndofs()];
-    (0..spec.ndofs())
-        .map(|j| {
-            let spans = span_lengths_m(spec, j, 0.5);
-            PairSpec {
-                joint: j,
-                rope_name: rope.to_string(),
-                rope: params.clone(),
-                law: law.clone(),
-                ropes_in_parallel: 1,
-                joint_radius_m: r_m,
-                motor_radius_m: r_m,
-                route: default_route(spec, j, &radii),
-                length_m: spans.iter().sum(),
-                span_lengths_m: spans,
-                preload_n,
-                prestretch_n: 0.0,
-                tensioner,
-                motor,
-                effects: vec![],
-            }
-        })
-        .collect()
+    longreach_arm::transmission::uniform_pairs(
+        spec, rope, &params, &law, r_m, preload_n, tensioner, motor, 0.5,
+    )
 }
 
 /// A servo motor with the given gains.
