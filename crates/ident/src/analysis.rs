@@ -36,6 +36,24 @@ pub struct RunData {
     pub noise_sigma: f64,
 }
 
+impl RunData {
+    /// A run whose measured channel is a rope tension (relaxation and cyclic tests):
+    /// every sample analysed, noise from the second differences.
+    fn tension_run(name: &str, time_s: &[f64], tension_n: &[f64]) -> Self {
+        Self {
+            name: name.to_string(),
+            time_s: time_s.to_vec(),
+            measured: tension_n.to_vec(),
+            idx: (0..time_s.len()).collect(),
+            segments: Vec::new(),
+            dt_s: dt_of(time_s),
+            mean_tension_n: None,
+            amplitude_rad: None,
+            noise_sigma: noise_sigma_second_difference(tension_n),
+        }
+    }
+}
+
 /// A dataset prepared for simulation and comparison.
 #[derive(Debug, Clone)]
 pub struct Prepared<'a> {
@@ -93,32 +111,12 @@ impl<'a> Prepared<'a> {
             DatasetKind::Relaxation(rx) => rx
                 .runs
                 .iter()
-                .map(|r| RunData {
-                    name: r.name.clone(),
-                    time_s: r.time_s.clone(),
-                    measured: r.tension_n.clone(),
-                    idx: (0..r.time_s.len()).collect(),
-                    segments: Vec::new(),
-                    dt_s: dt_of(&r.time_s),
-                    mean_tension_n: None,
-                    amplitude_rad: None,
-                    noise_sigma: noise_sigma_second_difference(&r.tension_n),
-                })
+                .map(|r| RunData::tension_run(&r.name, &r.time_s, &r.tension_n))
                 .collect(),
             DatasetKind::Cyclic(cy) => cy
                 .runs
                 .iter()
-                .map(|r| RunData {
-                    name: r.name.clone(),
-                    time_s: r.time_s.clone(),
-                    measured: r.tension_n.clone(),
-                    idx: (0..r.time_s.len()).collect(),
-                    segments: Vec::new(),
-                    dt_s: dt_of(&r.time_s),
-                    mean_tension_n: None,
-                    amplitude_rad: None,
-                    noise_sigma: noise_sigma_second_difference(&r.tension_n),
-                })
+                .map(|r| RunData::tension_run(&r.name, &r.time_s, &r.tension_n))
                 .collect(),
         };
         Ok(Self {
