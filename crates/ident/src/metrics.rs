@@ -645,7 +645,7 @@ pub fn power_spectrum(signal: &[f64], dt_s: f64) -> Result<(Vec<f64>, Vec<f64>)>
     let freq: Vec<f64> = (0..=half).map(|k| k as f64 * fs / n as f64).collect();
     let psd: Vec<f64> = (0..=half)
         .map(|k| {
-            let c = if k == 0 || (n % 2 == 0 && k == half) {
+            let c = if k == 0 || (n.is_multiple_of(2) && k == half) {
                 1.0
             } else {
                 2.0

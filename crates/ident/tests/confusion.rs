@@ -70,7 +70,7 @@ fn run_case(
         DataKind::SineSweep => {
             let mut opt = SweepOptions::paper(rope, seed);
             opt.tension_channels = tensions;
-            if seed % 2 == 0 {
+            if seed.is_multiple_of(2) {
                 opt.runs = [98.0, 196.0, 343.0]
                     .iter()
                     .map(|&t| (t, 3f64.to_radians()))
