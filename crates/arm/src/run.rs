@@ -110,6 +110,26 @@ pub fn run(
     residual_window_s: f64,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<(Trace, RunMetrics), ArmError> {
+    run_observed(
+        arm,
+        duration_s,
+        output_every,
+        residual_window_s,
+        progress,
+        &mut |_| {},
+    )
+}
+
+/// [`run`], calling `observe` with the state at t = 0 and after every step (a viewer
+/// reads the state; it cannot change the run).
+pub fn run_observed(
+    arm: &DrivenArm,
+    duration_s: f64,
+    output_every: usize,
+    residual_window_s: f64,
+    progress: &mut dyn FnMut(usize, usize),
+    observe: &mut dyn FnMut(&DrivenState),
+) -> Result<(Trace, RunMetrics), ArmError> {
     let steps = (duration_s / arm.dt_s()).round() as usize;
     let mut st = arm.initial_state();
     let n = st.q_rad.len();
@@ -119,6 +139,7 @@ pub fn run(
         rows: Vec::with_capacity(steps / output_every.max(1) + 2),
     };
     trace.rows.push(row(arm, &st));
+    observe(&st);
     let mut q_hist: Vec<Vec<f64>> = vec![Vec::with_capacity(steps + 1); n];
     let mut t_hist = Vec::with_capacity(steps + 1);
     t_hist.push(0.0);
@@ -148,6 +169,7 @@ pub fn run(
             .map(|r| [r[0].tension_n > 0.0, r[1].tension_n > 0.0])
             .collect();
         arm.step(&mut st)?;
+        observe(&st);
         iters += u64::from(st.iterations);
         for p in 0..np {
             for s in 0..2 {

@@ -6,12 +6,14 @@
 pub mod effects;
 mod error;
 pub mod freq;
+pub mod relay;
 mod rig;
 pub mod signal;
 pub mod sweep;
 pub mod tf;
 
 pub use error::DriveError;
+pub use relay::{RelayFriction, RelayTorque};
 pub use rig::{RigModel, RigSpec, RigState, Tensioner};
 pub use signal::{InputSignal, SineStep, SteppedSine};
 pub use sweep::{FrequencyPoint, RigTrace};
