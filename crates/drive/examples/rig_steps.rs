@@ -1,7 +1,8 @@
 //! Steps the paper's rig with Dyneema2 four-element ropes (for profiling):
-//! `cargo run --release -p longreach-drive --example rig_steps -- 1000000`.
+//! `cargo run --release -p longreach-drive --example rig_steps -- 1000000`; a second
+//! argument gives the relay pulleys that friction coefficient (inertia 2e-5 kg*m^2).
 
-use longreach_drive::{RigModel, RigSpec};
+use longreach_drive::{RelayFriction, RigModel, RigSpec};
 use longreach_rope::{Catalog, LawKind, RopeLaw};
 
 fn main() {
@@ -11,7 +12,16 @@ fn main() {
         .unwrap_or(1_000_000);
     let params = Catalog::builtin().get("dyneema2").unwrap().clone();
     let law = RopeLaw::from_params(&params, LawKind::FourElement).unwrap();
-    let model = RigModel::new(RigSpec::paper("dyneema2", law, 0.05, 147.0), 1e-3).unwrap();
+    let mut spec = RigSpec::paper("dyneema2", law, 0.05, 147.0);
+    spec.relay_friction = std::env::args()
+        .nth(2)
+        .and_then(|a| a.parse().ok())
+        .map(|coefficient| RelayFriction {
+            coefficient,
+            inertia_kg_m2: 2e-5,
+            slip_rate_rad_s: RelayFriction::DEFAULT_SLIP_RATE_RAD_S,
+        });
+    let model = RigModel::new(spec, 1e-3).unwrap();
     let mut st = model.rest_state();
     let amp = 4.5f64.to_radians();
     let t0 = std::time::Instant::now();

@@ -14,7 +14,7 @@ pub mod tf;
 
 pub use error::DriveError;
 pub use relay::{RelayFriction, RelayTorque};
-pub use rig::{RigModel, RigSpec, RigState, Tensioner};
+pub use rig::{RelayState, RigModel, RigSpec, RigState, Tensioner, MAX_RELAY_PULLEYS};
 pub use signal::{InputSignal, SineStep, SteppedSine};
 pub use sweep::{FrequencyPoint, RigTrace};
 pub use tf::{rig_resonance, rig_transfer, Resonance};

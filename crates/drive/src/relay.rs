@@ -45,8 +45,7 @@ impl RelayFriction {
             return Err(DriveError::BadParameter {
                 field: "relay_friction.coefficient".into(),
                 value: c,
-                reason: "must be < 1 (the pulley would lock; typical bearings 0.001-0.05)"
-                    .into(),
+                reason: "must be < 1 (the pulley would lock; typical bearings 0.001-0.05)".into(),
             });
         }
         non_negative("relay_friction.inertia_kg_m2", self.inertia_kg_m2)?;

@@ -63,19 +63,29 @@ pub struct Prepared<'a> {
     pub kind: DataKind,
     /// Its runs.
     pub runs: Vec<RunData>,
+    /// Simulation sub-steps per sample of sweeps ([`sim::SWEEP_SUBSTEPS`] by default).
+    pub substeps: usize,
 }
 
 /// Noise standard deviation of a smooth signal from its second differences:
-/// `x_i - (x_{i-1} + x_{i+1})/2` has variance `1.5 sigma^2` for white noise.
+/// `d_i = x_i - (x_{i-1} + x_{i+1})/2` is `N(0, 1.5 sigma^2)` for white Gaussian noise
+/// on a signal whose curvature over two samples is small, so
+/// `sigma = median |d_i| / (0.6745 sqrt 1.5)` (the median absolute deviation: robust
+/// to the few samples where the signal itself bends sharply, such as the step of a
+/// relaxation test at t = 0 or a decay faster than the sampling; a mean of squares
+/// would count those as noise and raise the floor).
 pub fn noise_sigma_second_difference(x: &[f64]) -> f64 {
     if x.len() < 3 {
         return 0.0;
     }
-    let s: f64 = x
+    let mut d: Vec<f64> = x
         .windows(3)
-        .map(|w| (w[1] - 0.5 * (w[0] + w[2])).powi(2))
-        .sum();
-    (s / (1.5 * (x.len() - 2) as f64)).sqrt()
+        .map(|w| (w[1] - 0.5 * (w[0] + w[2])).abs())
+        .collect();
+    let mid = d.len() / 2;
+    let (_, median, _) = d.select_nth_unstable_by(mid, f64::total_cmp);
+    // 0.67449 = Phi^-1(3/4): the median of |N(0, 1)|
+    *median / (0.674_489_750_196_081_7 * 1.5f64.sqrt())
 }
 
 impl<'a> Prepared<'a> {
@@ -123,6 +133,7 @@ impl<'a> Prepared<'a> {
             ds,
             kind: data_kind(ds),
             runs,
+            substeps: sim::SWEEP_SUBSTEPS,
         })
     }
 
@@ -145,7 +156,8 @@ impl<'a> Prepared<'a> {
                 if let Some(c) = damping {
                     spec.output_damping_n_m_s = c;
                 }
-                sim::simulate_sweep(spec, sim::drive_input(run), run.dt_s(), sim::SWEEP_SUBSTEPS)
+                model.apply_to_rig(r, &mut spec)?;
+                sim::simulate_sweep(spec, sim::drive_input(run), run.dt_s(), self.substeps)
                     .map(|s| s.output_rad)
             }
             DatasetKind::Relaxation(rx) => {
@@ -405,7 +417,41 @@ fn starting_values(prep: &Prepared<'_>, model: &Model) -> Result<Vec<Vec<f64>>, 
             }
         }
     } else {
-        let costs: Vec<f64> = points
+        // Two settings of the base constants: the baseline's fitted ones (in `points`)
+        // and the catalog's (a strong effect pulls the baseline's constants far from
+        // where the model with the effect has its optimum).
+        let law = &model.law;
+        let catalog: Vec<Option<f64>> = specs
+            .iter()
+            .enumerate()
+            .map(|(i, s)| {
+                if !matches!(slots[i].owner, crate::model::Owner::Base) {
+                    return None;
+                }
+                let v = match s.name.as_str() {
+                    "k1" => Some(law.k1_n),
+                    "c2" => law.c2_n_s,
+                    "k3" => law.kelvin.first().map(|k| k.k_n),
+                    "c3" => law.kelvin.first().map(|k| k.c_n_s),
+                    _ => None,
+                };
+                v.map(|v| v.clamp(s.lower, s.upper))
+            })
+            .collect();
+        let alt: Vec<Vec<f64>> = points
+            .iter()
+            .map(|x| {
+                x.iter()
+                    .zip(&catalog)
+                    .map(|(&v, c)| c.unwrap_or(v))
+                    .collect()
+            })
+            .collect();
+        let mut all = points;
+        if alt[0] != all[0] {
+            all.extend(alt);
+        }
+        let costs: Vec<f64> = all
             .par_iter()
             .map(|x| {
                 let m = model.with_values(x, prep.runs.len());
@@ -414,34 +460,83 @@ fn starting_values(prep: &Prepared<'_>, model: &Model) -> Result<Vec<Vec<f64>>, 
                     .unwrap_or(f64::INFINITY)
             })
             .collect();
-        let best = (0..total)
-            .min_by(|&a, &b| costs[a].total_cmp(&costs[b]))
-            .unwrap_or(0);
-        // A second start: the same grid point with the base constants back at the
-        // catalog's (a strong effect can pull the baseline's fitted constants far away).
-        let mut alt = points[best].clone();
-        let law = &model.law;
-        for (i, s) in specs.iter().enumerate() {
-            if matches!(slots[i].owner, crate::model::Owner::Base) {
-                let v = match s.name.as_str() {
-                    "k1" => Some(law.k1_n),
-                    "c2" => law.c2_n_s,
-                    "k3" => law.kelvin.first().map(|k| k.k_n),
-                    "c3" => law.kelvin.first().map(|k| k.c_n_s),
-                    _ => None,
-                };
-                if let Some(v) = v {
-                    alt[i] = v.clamp(s.lower, s.upper);
-                }
+        let mut order: Vec<usize> = (0..all.len()).filter(|&k| costs[k].is_finite()).collect();
+        order.sort_by(|&a, &b| costs[a].total_cmp(&costs[b]).then(a.cmp(&b)));
+        // Multi-start: the best grid point with the baseline's constants, the same
+        // effect values with the catalog's, the best grid point with the catalog's,
+        // then the best points whose effect values differ from those taken (another
+        // basin: e.g. a second retardation time on either side of the rope's own); 4 at
+        // most.
+        let mut out: Vec<Vec<f64>> = Vec::new();
+        let mut taken_gridded: Vec<Vec<f64>> = Vec::new();
+        if let Some(&k) = order.iter().find(|&&k| k < total) {
+            out.push(all[k].clone());
+            // the same effect values with the catalog's constants
+            if all.len() > total {
+                out.push(all[k + total].clone());
             }
         }
-        let mut out = vec![points[best].clone()];
-        if alt != out[0] {
-            out.push(alt);
+        if let Some(&k) = order.iter().find(|&&k| k >= total) {
+            if !out.contains(&all[k]) {
+                out.push(all[k].clone());
+            }
+        }
+        for x in &out {
+            let g: Vec<f64> = gridded.iter().map(|&i| x[i]).collect();
+            if !taken_gridded.contains(&g) {
+                taken_gridded.push(g);
+            }
+        }
+        for &k in &order {
+            if out.len() >= 4 {
+                break;
+            }
+            let g: Vec<f64> = gridded.iter().map(|&i| all[k][i]).collect();
+            if !taken_gridded.contains(&g) {
+                taken_gridded.push(g);
+                out.push(all[k].clone());
+            }
+        }
+        if out.is_empty() {
+            out.push(x0);
         }
         return Ok(out);
     }
     Ok(vec![x0])
+}
+
+/// Scores `model` at its starting values without the time-domain refinement: the
+/// starting grid (for sweeps refined on the analytic response) and one simulation per
+/// start; the best start is returned with `fit = None`. [`diagnose`] uses it for the
+/// candidates when the baseline already fits to the noise floor: no candidate can be
+/// decisive then, and the time-domain fits (of a non-linear law above all) are the
+/// dearest part of a diagnosis.
+pub fn screen_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, String> {
+    let starts = starting_values(prep, model)?;
+    let scored: Vec<Result<(Model, Vec<Vec<f64>>, f64), String>> = starts
+        .par_iter()
+        .map(|x| {
+            let m = model.with_values(x, prep.runs.len());
+            let sims = prep.simulate(&m)?;
+            let ssr = prep.residuals_of(&sims).iter().map(|e| e * e).sum();
+            Ok((m, sims, ssr))
+        })
+        .collect();
+    let (fitted_model, sims, ssr) = scored
+        .into_iter()
+        .filter_map(Result::ok)
+        .min_by(|a, b| a.2.total_cmp(&b.2))
+        .ok_or_else(|| "every start failed to simulate".to_string())?;
+    let (nrmse, noise_floor) = prep.overall(&sims);
+    Ok(Fitted {
+        model: fitted_model,
+        fit: None,
+        nrmse_before: nrmse,
+        nrmse,
+        noise_floor,
+        ssr,
+        sims,
+    })
 }
 
 /// Fits the free parameters of `model` to the dataset.
@@ -852,7 +947,7 @@ fn peak(pts: &[(f64, f64)]) -> Option<(f64, f64)> {
 pub struct Candidate {
     /// Effect name.
     pub effect: String,
-    /// NRMSE of baseline + effect, fitted.
+    /// NRMSE of baseline + effect, fitted (or screened, see `screened`).
     pub nrmse: f64,
     /// Score: BIC improvement over the baseline, `n ln(SSR_b / SSR_c) - dk ln n`.
     pub score: f64,
@@ -862,6 +957,9 @@ pub struct Candidate {
     pub params: std::collections::BTreeMap<String, f64>,
     /// True for the winner when the evidence is decisive.
     pub decisive: bool,
+    /// True when the candidate was only screened ([`screen_model`]: its starting values,
+    /// one simulation) because the baseline already fits to the noise floor.
+    pub screened: bool,
     /// Why the fit failed, if it did.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
@@ -904,8 +1002,20 @@ pub struct Diagnosis {
 
 /// Fraction of the baseline's excess squared error a decisive winner must explain.
 pub const MIN_EXPLAINED: f64 = 0.5;
-/// Baseline NRMSE above this multiple of the noise floor is a failure worth diagnosing.
-pub const FLOOR_MARGIN: f64 = 1.5;
+/// Baseline NRMSE above this multiple of the noise floor is a failure worth diagnosing
+/// (the squared error 10% above the floor: beyond the floor estimate's own scatter,
+/// ~2% for a few thousand samples, and the sweep simulation's time-step error, ~2% of
+/// the floor's squared error at 2.5 ms; see `docs/models.md`).
+pub const FLOOR_MARGIN: f64 = 1.05;
+/// Least score (BIC improvement over the baseline) of a decisive winner: "very strong"
+/// evidence on the scale of Kass and Raftery (1995), `2 ln B > 10`.
+pub const MIN_SCORE: f64 = 10.0;
+/// Least score lead of a decisive winner over the second candidate beyond one
+/// parameter's BIC penalty `ln n` (n: analysed samples): two effects that fit equally
+/// well differ by their parameter counts alone, `ln n` per parameter; the data must
+/// favour the winner "very strongly" over the next explanation, not only over the
+/// baseline.
+pub const MIN_SCORE_GAP: f64 = 10.0;
 
 /// Fits the baseline and every applicable registered effect; ranks and decides.
 /// Returns the diagnosis and the winning model (if any).
@@ -927,13 +1037,19 @@ pub fn diagnose(
         .copied()
         .filter(|e| e.applies_to(prep.kind) && !base.model.has_effect(*e))
         .collect();
+    // At the noise floor no candidate can be decisive: screen them (starting values,
+    // one simulation each) instead of fitting them in the time domain.
+    let at_floor = base.nrmse <= FLOOR_MARGIN * base.noise_floor;
     let fits: Vec<(String, Result<Fitted, String>)> = effects
         .par_iter()
         .map(|e| {
-            (
-                e.name().to_string(),
-                fit_model(prep, &base.model.with_effect(*e)),
-            )
+            let m = base.model.with_effect(*e);
+            let f = if at_floor {
+                screen_model(prep, &m)
+            } else {
+                fit_model(prep, &m)
+            };
+            (e.name().to_string(), f)
         })
         .collect();
     let excess = (base.ssr - ssr_floor).max(0.0);
@@ -961,6 +1077,7 @@ pub fn diagnose(
                         explained: explained.min(1.5),
                         params: f.model.named_values().into_iter().collect(),
                         decisive: false,
+                        screened: at_floor,
                         error: None,
                     },
                     Some(f),
@@ -974,6 +1091,7 @@ pub fn diagnose(
                     explained: 0.0,
                     params: Default::default(),
                     decisive: false,
+                    screened: at_floor,
                     error: Some(err),
                 },
                 None,
@@ -985,16 +1103,25 @@ pub fn diagnose(
             .total_cmp(&a.0.score)
             .then(a.0.effect.cmp(&b.0.effect))
     });
-    let at_floor = base.nrmse <= FLOOR_MARGIN * base.noise_floor;
     let decisive = !at_floor
-        && cands.first().is_some_and(|(best, _)| {
-            let best_left = (base.ssr * (1.0 - 0.0) - best.explained * excess).max(0.0);
-            let second_left = cands.get(1).map_or(f64::INFINITY, |(c, _)| {
-                (base.ssr - c.explained * excess).max(0.0)
-            });
+        && cands.first().is_some_and(|(best, fit)| {
+            let gap = cands
+                .get(1)
+                .map_or(f64::INFINITY, |(second, _)| best.score - second.score);
+            // The winner reaches the floor, or leaves at most half the excess the
+            // second leaves: a lead in score between two candidates that both stop far
+            // above the floor may be a fit that stopped early, not evidence.
+            let best_ssr = fit.as_ref().map_or(f64::INFINITY, |f| f.ssr);
+            let reaches_floor = best_ssr <= FLOOR_MARGIN * FLOOR_MARGIN * ssr_floor;
+            let second_left = cands
+                .get(1)
+                .and_then(|(_, f)| f.as_ref())
+                .map_or(base.ssr, |f| f.ssr.min(base.ssr));
+            let separated = second_left - ssr_floor >= 2.0 * (best_ssr - ssr_floor).max(0.0);
             best.explained >= MIN_EXPLAINED
-                && best.score > 10.0
-                && (second_left - ssr_floor) >= 2.0 * (best_left - ssr_floor).max(0.0)
+                && best.score > MIN_SCORE
+                && gap >= MIN_SCORE_GAP + n.ln()
+                && (reaches_floor || separated)
         });
     let mut winner = None;
     if decisive {
@@ -1050,7 +1177,7 @@ fn explain(
     let ratio = base.nrmse / base.noise_floor.max(f64::MIN_POSITIVE);
     if at_floor {
         s.push_str(&format!(
-            "The baseline fits to the noise floor (NRMSE {:.4}, {:.2}x the floor {:.4} of the sensors): no missing effect is needed; none found.",
+            "The baseline fits to the noise floor (NRMSE {:.4}, {:.2}x the floor {:.4} of the sensors): no missing effect is needed; none found (the candidates were screened at their starting values, not fitted).",
             base.nrmse, ratio, base.noise_floor
         ));
         return s;
@@ -1151,6 +1278,14 @@ fn explain(
                     b.effect,
                     100.0 * b.explained.clamp(0.0, 1.0)
                 ));
+                if let Some(second) = cands.get(1) {
+                    if b.explained >= MIN_EXPLAINED && second.explained >= MIN_EXPLAINED {
+                        s.push_str(&format!(
+                            "{} and {} both explain it (scores {:.1} and {:.1}): these data cannot tell them apart (a test of another kind or frequency range can; see docs/models.md). ",
+                            b.effect, second.effect, b.score, second.score
+                        ));
+                    }
+                }
             } else {
                 s.push_str("No registered effect applies to this kind of data. ");
             }

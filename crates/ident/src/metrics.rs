@@ -205,8 +205,9 @@ pub fn single_bin_dft(signal: &[f64], dt_s: f64, frequency_hz: f64) -> Result<Co
 /// Frequency response of `output` over `input` at `frequency_hz` from single-bin DFTs
 /// ([`single_bin_dft`]) of both: `H = Y / X`, returned as
 /// `(gain_db, phase_deg) = (20 log10 |H|, arg H)` with the phase wrapped into
-/// (-180, 180] deg. Over a sweep, pass the phases through [`unwrap_phase_deg`] to follow
-/// a lag past -180 deg. The slices should span a whole number of cycles.
+/// (-180, 180] deg. Over a sweep, pass the phases through
+/// [`longreach_drive::freq::unwrap_deg`] to follow a lag past -180 deg. The slices
+/// should span a whole number of cycles.
 pub fn frequency_response(
     input: &[f64],
     output: &[f64],
@@ -248,23 +249,6 @@ pub fn wrap_phase_deg(phase_deg: f64) -> f64 {
         p -= 360.0;
     }
     p
-}
-
-/// Unwraps a sequence of phases (deg) (e.g. over increasing frequency): adds multiples
-/// of 360 deg so that each step from one value to the next lies in (-180, 180] deg.
-/// The first value is kept as is.
-pub fn unwrap_phase_deg(phase_deg: &[f64]) -> Vec<f64> {
-    let mut out = Vec::with_capacity(phase_deg.len());
-    let mut offset = 0.0;
-    for (i, &p) in phase_deg.iter().enumerate() {
-        if i > 0 {
-            let prev = out[i - 1];
-            let step = wrap_phase_deg(p + offset - prev);
-            offset = prev + step - p;
-        }
-        out.push(p + offset);
-    }
-    out
 }
 
 /// Share of the total squared error falling into one group of samples.

@@ -287,6 +287,23 @@ impl Model {
         Ok((law, damping))
     }
 
+    /// Applies the model's effects that act on the transmission (e.g. `relay_friction`)
+    /// to the drive rig of run `run`; effects on the rope law alone leave it unchanged.
+    pub fn apply_to_rig(
+        &self,
+        run: usize,
+        rig: &mut longreach_drive::RigSpec,
+    ) -> Result<(), String> {
+        let mut scratch = self.law.clone();
+        for u in &self.effects {
+            let vals: Vec<f64> = u.params.iter().map(|p| p.value_for(run)).collect();
+            u.effect
+                .apply(&vals, &mut scratch, Some(rig))
+                .map_err(|e| format!("effect {}: {e}", u.effect.name()))?;
+        }
+        Ok(())
+    }
+
     /// The model plus `effect` with its default parameters, all fitted.
     pub fn with_effect(&self, effect: &'static dyn Effect) -> Model {
         let mut m = self.clone();
@@ -318,7 +335,7 @@ impl Model {
             .any(|u| u.effect.name() == effect.name())
             || self
                 .law_for_run(0)
-                .is_ok_and(|(l, _)| effect.present_in(&l))
+                .is_ok_and(|(l, _)| effect.present_in(&l, None))
     }
 
     /// Named values of every parameter (per-run ones as `name[run]`), sorted by name.

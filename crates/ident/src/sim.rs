@@ -26,10 +26,15 @@ pub const ROPE_SUBSTEPS: usize = 10;
 pub struct SimSweep {
     /// Output angle [rad].
     pub output_rad: Vec<f64>,
-    /// Rope 1 tension [N].
+    /// Rope 1 tension next to the output pulley [N].
     pub tension_1_n: Vec<f64>,
-    /// Rope 2 tension [N].
+    /// Rope 2 tension next to the output pulley [N].
     pub tension_2_n: Vec<f64>,
+    /// Rope 1 tension next to the input pulley [N] (differs from `tension_1_n` only
+    /// with relay friction).
+    pub tension_in_1_n: Vec<f64>,
+    /// Rope 2 tension next to the input pulley [N].
+    pub tension_in_2_n: Vec<f64>,
 }
 
 /// The input angle that drives the model for `run`: the command when the measured
@@ -60,6 +65,7 @@ pub fn drive_rig(rig: &RigSpec, law: RopeLaw, mean_tension_n: f64) -> DriveRig {
         output_damping_n_m_s: rig.output_damping_n_m_s,
         relay_pulleys: rig.relay_pulleys,
         relay_radius_m: rig.relay_radius_m,
+        relay_friction: None,
         tensioner: DriveTensioner::ConstantForce,
         mean_tension_n,
         prestretch_n: 490.0,
@@ -81,11 +87,15 @@ pub fn simulate_sweep(
         output_rad: Vec::with_capacity(n),
         tension_1_n: Vec::with_capacity(n),
         tension_2_n: Vec::with_capacity(n),
+        tension_in_1_n: Vec::with_capacity(n),
+        tension_in_2_n: Vec::with_capacity(n),
     };
     let push = |out: &mut SimSweep, st: &longreach_drive::RigState| {
         out.output_rad.push(st.output_rad);
         out.tension_1_n.push(st.tension_n(0));
         out.tension_2_n.push(st.tension_n(1));
+        out.tension_in_1_n.push(st.tension_in_n(0));
+        out.tension_in_2_n.push(st.tension_in_n(1));
     };
     if n == 0 {
         return Ok(out);

@@ -1,11 +1,11 @@
-//! Synthetic datasets in the measurement format from any model, with any effects hidden
-//! and realistic sensors (0.18 deg encoders, Gaussian tension noise), seeded.
+//! Synthetic datasets in the measurement format (stepped-sine sweeps, relaxation and
+//! cyclic tests) from any model, with any effects hidden and realistic sensors (0.18 deg encoders, Gaussian tension noise), seeded.
 
 use longreach_drive::{InputSignal, SteppedSine};
 
 use crate::dataset::{
-    Frf, RelaxationDataset, RelaxationRun, RelaxationSpecimen, RigSpec, SweepDataset, SweepRun,
-    Tensioner,
+    CyclicDataset, CyclicRun, CyclicSpecimen, Frf, RelaxationDataset, RelaxationRun,
+    RelaxationSpecimen, RigSpec, SweepDataset, SweepRun, Tensioner,
 };
 use crate::model::Model;
 use crate::sensors::{Encoder, GaussianNoise};
@@ -104,6 +104,7 @@ pub fn sweep(model: &Model, opt: &SweepOptions) -> Result<SweepDataset, String> 
         if let Some(c) = damping {
             spec.output_damping_n_m_s = c;
         }
+        model.apply_to_rig(r, &mut spec)?;
         let s = sim::simulate_sweep(spec, &command, opt.dt_s, opt.substeps)
             .map_err(|e| e.to_string())?;
         let noise = |ch: u64, x: &[f64]| -> Result<Vec<f64>, String> {
@@ -116,8 +117,8 @@ pub fn sweep(model: &Model, opt: &SweepOptions) -> Result<SweepDataset, String> 
         };
         let (t1, t2, t3, t4) = if opt.tension_channels {
             (
-                Some(noise(1, &s.tension_1_n)?),
-                Some(noise(2, &s.tension_2_n)?),
+                Some(noise(1, &s.tension_in_1_n)?),
+                Some(noise(2, &s.tension_in_2_n)?),
                 Some(noise(3, &s.tension_1_n)?),
                 Some(noise(4, &s.tension_2_n)?),
             )
@@ -201,5 +202,105 @@ pub fn relaxation(model: &Model, opt: &RelaxationOptions) -> Result<RelaxationDa
             time_s,
             tension_n: g.noisy(&f),
         }],
+    })
+}
+
+/// Options of a synthetic cyclic load-strain test (paper Sec. II): the strain rises
+/// from 0 to the run's upper strain at a constant rate, then cycles between its lower
+/// and upper strains at the same rate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CyclicOptions {
+    /// Rope catalog name.
+    pub rope: String,
+    /// Specimen length [m].
+    pub length_m: f64,
+    /// One run per `(lower strain, upper strain)`.
+    pub runs: Vec<(f64, f64)>,
+    /// Strain rate of the ramps [1/s].
+    pub strain_rate_per_s: f64,
+    /// Full cycles after the first loading.
+    pub cycles: usize,
+    /// Sample interval [s].
+    pub dt_s: f64,
+    /// Tension noise [N].
+    pub tension_noise_n: f64,
+    /// Seed.
+    pub seed: u64,
+}
+
+impl CyclicOptions {
+    /// Two runs (0.5-1.0% and 1.0-1.5% strain) at 0.2%/s, 8 cycles, 20 Hz, 2 N noise.
+    pub fn paper(rope: &str, seed: u64) -> Self {
+        Self {
+            rope: rope.into(),
+            length_m: 0.1,
+            runs: vec![(0.005, 0.010), (0.010, 0.015)],
+            strain_rate_per_s: 0.002,
+            cycles: 8,
+            dt_s: 0.05,
+            tension_noise_n: 2.0,
+            seed,
+        }
+    }
+}
+
+/// Strain of the cyclic history at time `t`: up from 0 to `hi`, then triangles
+/// between `lo` and `hi` at `rate`.
+fn cyclic_strain(t: f64, lo: f64, hi: f64, rate: f64) -> f64 {
+    let t_up = hi / rate;
+    if t <= t_up {
+        return rate * t;
+    }
+    let half = (hi - lo) / rate;
+    let u = (t - t_up) % (2.0 * half);
+    if u <= half {
+        hi - rate * u
+    } else {
+        lo + rate * (u - half)
+    }
+}
+
+/// A synthetic cyclic test of `model` (its values for run `r` apply to run `r`).
+pub fn cyclic(model: &Model, opt: &CyclicOptions) -> Result<CyclicDataset, String> {
+    if !(opt.strain_rate_per_s > 0.0 && opt.dt_s > 0.0) {
+        return Err(format!(
+            "cyclic test: strain rate {} 1/s and dt {} s must be > 0",
+            opt.strain_rate_per_s, opt.dt_s
+        ));
+    }
+    let mut runs = Vec::new();
+    for (r, &(lo, hi)) in opt.runs.iter().enumerate() {
+        if !(0.0 <= lo && lo < hi) {
+            return Err(format!(
+                "cyclic run {}: need 0 <= lower strain {lo} < upper strain {hi}",
+                r + 1
+            ));
+        }
+        let duration = hi / opt.strain_rate_per_s
+            + 2.0 * opt.cycles as f64 * (hi - lo) / opt.strain_rate_per_s;
+        let n = (duration / opt.dt_s).round() as usize + 1;
+        let time_s: Vec<f64> = (0..n).map(|i| i as f64 * opt.dt_s).collect();
+        let strain: Vec<f64> = time_s
+            .iter()
+            .map(|&t| cyclic_strain(t, lo, hi, opt.strain_rate_per_s))
+            .collect();
+        let (law, _) = model.law_for_run(r)?;
+        let f = sim::simulate_cyclic(&law, &time_s, &strain).map_err(|e| e.to_string())?;
+        let mut g = GaussianNoise::new(opt.tension_noise_n, opt.seed.wrapping_mul(1000) + r as u64)
+            .map_err(|e| e.to_string())?;
+        runs.push(CyclicRun {
+            name: format!("cyclic_{:02}", r + 1),
+            file: format!("cyclic_{:02}.csv", r + 1),
+            time_s,
+            strain,
+            tension_n: g.noisy(&f),
+        });
+    }
+    Ok(CyclicDataset {
+        specimen: CyclicSpecimen {
+            rope: opt.rope.clone(),
+            length_m: opt.length_m,
+        },
+        runs,
     })
 }

@@ -38,13 +38,28 @@ fn base_model(rope: &str, kind: DataKind) -> Model {
 }
 
 /// Hidden parameter values per effect, two settings each (strong enough to matter).
-fn settings(e: &dyn Effect) -> Vec<Vec<f64>> {
+///
+/// `extra_retardation` in relaxation: retardation times c/k of 20 s and 8 s, at least
+/// 4.6x from the ropes' own c3/k3 (1.74 s dyneema2, 0.36 s vectran2). Two Kelvin
+/// elements with equal times are one Kelvin element (`1/k = 1/k3 + 1/k`), which the
+/// baseline's refitted k3, c3 absorb exactly: the former 0.4 s setting was invisible on
+/// vectran2. On the rig: corners k/(2 pi c) of 0.4 and 1.6 Hz, inside the 0.1-6 Hz
+/// band, where the element's loss peak and its step in stiffness show. The former
+/// 20 s setting (corner 0.008 Hz) only adds a little damping at the resonance, which
+/// a dashpot c1 = 8 N*s parallel to k1 reproduces to 0.2% of the noise floor's squared
+/// error: no sweep can tell the two apart.
+fn settings(e: &dyn Effect, kind: DataKind) -> Vec<Vec<f64>> {
     match e.name() {
         "nonlinear_stiffness" => vec![vec![2e-3], vec![5e-3]],
         "internal_damping" => vec![vec![400.0], vec![1500.0]],
-        "extra_retardation" => vec![vec![1.5e5, 3e6], vec![5e5, 2e5]],
+        "extra_retardation" if kind == DataKind::Relaxation => {
+            vec![vec![1.5e5, 3e6], vec![5e5, 4e6]]
+        }
+        "extra_retardation" => vec![vec![5e5, 2e5], vec![3e5, 3e4]],
         "nonlinear_creep" => vec![vec![400.0, 2.0], vec![800.0, 3.0]],
         "plastic_ratchet" => vec![vec![1e5], vec![3e5]],
+        // Bearing coefficient and pulley inertia: a good bearing and a poor one.
+        "relay_friction" => vec![vec![0.003, 2e-5], vec![0.01, 5e-5]],
         _ => e.params().iter().map(|p| vec![p.default]).collect(),
     }
 }
@@ -55,7 +70,7 @@ fn run_case(
     hidden: Option<(&'static dyn Effect, &[f64])>,
     seed: u64,
     tensions: bool,
-) -> Option<String> {
+) -> Verdict {
     let base = base_model(rope, kind);
     let mut truth = base.clone();
     if let Some((e, v)) = hidden {
@@ -101,7 +116,18 @@ fn run_case(
             .map(|c| (c.effect.as_str(), (c.score * 10.0).round() / 10.0))
             .collect::<Vec<_>>()
     );
-    d.missing_effect
+    Verdict {
+        missing: d.missing_effect,
+        first: d.candidates.first().map(|c| c.effect.clone()),
+    }
+}
+
+/// What `diagnose` said about one dataset.
+struct Verdict {
+    /// The effect named missing (decisive), if any.
+    missing: Option<String>,
+    /// The first-ranked candidate.
+    first: Option<String>,
 }
 
 #[test]
@@ -125,33 +151,42 @@ fn confusion_matrix_full() {
             for seed in 0..2u64 {
                 let s = 100 + i as u64 * 10 + seed;
                 control.1 += 1;
-                if run_case(kind, rope, None, s, seed == 0).is_none() {
+                if run_case(kind, rope, None, s, seed == 0).missing.is_none() {
                     control.0 += 1;
                 }
             }
         }
         for e in REGISTRY.iter().copied().filter(|e| e.applies_to(kind)) {
-            let (mut hit, mut n) = (0, 0);
+            // (decisive, ranked first, datasets)
+            let (mut decisive, mut first, mut n) = (0, 0, 0);
             for (i, rope) in ropes.iter().enumerate() {
-                for (j, v) in settings(e).iter().enumerate() {
+                for (j, v) in settings(e, kind).iter().enumerate() {
                     let s = 1000 + i as u64 * 10 + j as u64;
                     n += 1;
-                    if run_case(kind, rope, Some((e, v)), s, j == 0).as_deref() == Some(e.name()) {
-                        hit += 1;
-                    }
+                    let v = run_case(kind, rope, Some((e, v)), s, j == 0);
+                    decisive += usize::from(v.missing.as_deref() == Some(e.name()));
+                    first += usize::from(v.first.as_deref() == Some(e.name()));
                 }
             }
-            rows.push((kind, e.name(), hit, n));
+            rows.push((kind, e.name(), decisive, first, n));
         }
     }
-    println!("| kind | hidden effect | named first | datasets |\n|---|---|---|---|");
-    for (k, e, h, n) in &rows {
-        println!("| {k:?} | {e} | {h} | {n} |");
+    println!(
+        "| kind | hidden effect | decisive | ranked first | datasets |\n|---|---|---|---|---|"
+    );
+    for (k, e, d, f, n) in &rows {
+        println!("| {k:?} | {e} | {d} | {f} | {n} |");
     }
-    println!("| all | control (null) | {} | {} |", control.0, control.1);
+    println!(
+        "| all | control (null) | {} | - | {} |",
+        control.0, control.1
+    );
     let _ = effects::names();
-    for (_, e, h, n) in &rows {
-        assert!(*h as f64 >= 0.9 * *n as f64, "{e}: {h}/{n}");
+    // Issue 3: the hidden effect ranks first in >= 90% of the datasets; controls give
+    // null in >= 95%. (`decisive` is reported; where two effects fit equally well the
+    // rule refuses to decide, see docs/models.md.)
+    for (_, e, _, f, n) in &rows {
+        assert!(*f as f64 >= 0.9 * *n as f64, "{e}: ranked first {f}/{n}");
     }
     assert!(control.0 as f64 >= 0.95 * control.1 as f64);
 }

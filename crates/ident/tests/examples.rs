@@ -1,7 +1,8 @@
 //! The example datasets of data/examples load, and the rig software's FRF files agree
 //! with our DFT on the runs' time series.
 
-use longreach_ident::metrics::{frequency_response, unwrap_phase_deg, wrap_phase_deg};
+use longreach_drive::freq::unwrap_deg;
+use longreach_ident::metrics::{frequency_response, wrap_phase_deg};
 use longreach_ident::{
     Dataset, DatasetKind, RelaxationDataset, SweepDataset, Tensioner, WindowAlignment,
 };
@@ -223,7 +224,7 @@ fn frf_files_match_our_frequency_response() {
                 phases.push(p);
             }
             // the lag of this second-order system goes from ~0 towards -180 deg
-            let unwrapped = unwrap_phase_deg(&phases);
+            let unwrapped = unwrap_deg(&phases);
             assert!(unwrapped[0] < 0.0 && unwrapped[0] > -2.0);
             assert!(unwrapped[16] < -170.0 && unwrapped[16] > -180.0);
             assert!(

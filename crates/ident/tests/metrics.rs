@@ -81,7 +81,8 @@ fn phase_wrapping_and_unwrapping() {
     assert!((wrap_phase_deg(190.0) + 170.0).abs() < 1e-12);
     assert!((wrap_phase_deg(-180.0) - 180.0).abs() < 1e-12);
     assert!((wrap_phase_deg(-540.5) - 179.5).abs() < 1e-12);
-    let u = unwrap_phase_deg(&[-10.0, -170.0, 175.0, 160.0, 100.0]);
+    // unwrapping is the drive crate's (one copy for the workspace)
+    let u = longreach_drive::freq::unwrap_deg(&[-10.0, -170.0, 175.0, 160.0, 100.0]);
     let expected = [-10.0, -170.0, -185.0, -200.0, -260.0];
     for (a, b) in u.iter().zip(expected) {
         assert!((a - b).abs() < 1e-12, "{u:?}");

@@ -107,3 +107,57 @@ fn errors_name_the_field_and_the_fix() {
         );
     }
 }
+
+/// `[rig.relay_friction]` reaches the rig (slip rate defaulted); bad values name the
+/// field, its line and the fix.
+#[test]
+fn relay_friction_section() {
+    let with =
+        |body: &str| BASE.replace("[sweep]", &format!("[rig.relay_friction]\n{body}\n[sweep]"));
+    let s = BodeScenario::from_str(
+        &with("coefficient = 0.02\ninertia_kg_m2 = 2e-5"),
+        "relay.toml",
+    )
+    .unwrap();
+    let f = s.rigs[0].relay_friction.unwrap();
+    assert_eq!(f.coefficient, 0.02);
+    assert_eq!(f.inertia_kg_m2, 2e-5);
+    assert_eq!(
+        f.slip_rate_rad_s,
+        longreach_drive::RelayFriction::DEFAULT_SLIP_RATE_RAD_S
+    );
+    // BASE has no relay_friction: ideal pulleys.
+    assert!(BodeScenario::from_str(BASE, "base.toml").unwrap().rigs[0]
+        .relay_friction
+        .is_none());
+    for (body, field, line) in [
+        (
+            "coefficient = 1.5\ninertia_kg_m2 = 2e-5",
+            "rig.relay_friction.coefficient",
+            "relay.toml:10",
+        ),
+        (
+            "coefficient = 0.01\ninertia_kg_m2 = -1.0",
+            "rig.relay_friction.inertia_kg_m2",
+            "relay.toml:11",
+        ),
+        (
+            "coefficient = 0.01\ninertia_kg_m2 = 1e-5\nslip_rate_rad_s = 0.0",
+            "rig.relay_friction.slip_rate_rad_s",
+            "relay.toml:12",
+        ),
+    ] {
+        let err = BodeScenario::from_str(&with(body), "relay.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("relay.toml") && err.contains(field) && err.contains("fix:"),
+            "{err}"
+        );
+        assert!(err.contains(line), "{err}");
+    }
+    let err = BodeScenario::from_str(&with("coefficent = 0.01\ninertia_kg_m2 = 1e-5"), "r.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("coefficent"), "{err}");
+}

@@ -45,7 +45,7 @@ impl Effect for ExtraRetardation {
     fn applies_to(&self, _kind: DataKind) -> bool {
         true
     }
-    fn present_in(&self, law: &RopeLaw) -> bool {
+    fn present_in(&self, law: &RopeLaw, _rig: Option<&RigSpec>) -> bool {
         law.kelvin.len() >= 2
     }
     fn apply(

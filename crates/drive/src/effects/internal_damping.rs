@@ -36,7 +36,7 @@ impl Effect for InternalDamping {
     fn applies_to(&self, kind: DataKind) -> bool {
         kind != DataKind::Relaxation
     }
-    fn present_in(&self, law: &RopeLaw) -> bool {
+    fn present_in(&self, law: &RopeLaw, _rig: Option<&RigSpec>) -> bool {
         law.c1_n_s > 0.0
     }
     fn apply(

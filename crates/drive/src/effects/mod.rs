@@ -35,6 +35,7 @@
 //!     fn doc(&self) -> &'static str { "Clamp slip lowers the mean tension: ..." }
 //!     fn params(&self) -> &'static [EffectParam] { PARAMS }
 //!     fn applies_to(&self, kind: DataKind) -> bool { kind == DataKind::SineSweep }
+//!     fn present_in(&self, _law: &RopeLaw, _rig: Option<&RigSpec>) -> bool { false }
 //!     fn apply(&self, v: &[f64], _law: &mut RopeLaw, rig: Option<&mut RigSpec>) -> Result<(), DriveError> {
 //!         if let Some(rig) = rig { rig.mean_tension_n *= 1.0 - v[0]; }
 //!         Ok(())
@@ -54,12 +55,14 @@ mod internal_damping;
 mod nonlinear_creep;
 mod nonlinear_stiffness;
 mod plastic_ratchet;
+mod relay_friction;
 
 pub use extra_retardation::ExtraRetardation;
 pub use internal_damping::InternalDamping;
 pub use nonlinear_creep::NonlinearCreepEffect;
 pub use nonlinear_stiffness::NonlinearStiffness;
 pub use plastic_ratchet::PlasticRatchet;
+pub use relay_friction::RelayFrictionEffect;
 
 use longreach_rope::RopeLaw;
 
@@ -103,8 +106,9 @@ pub trait Effect: Sync + std::fmt::Debug {
     fn params(&self) -> &'static [EffectParam];
     /// True when a measurement of this kind can reveal the effect.
     fn applies_to(&self, kind: DataKind) -> bool;
-    /// True when `law` already holds this effect (diagnose then skips it).
-    fn present_in(&self, law: &RopeLaw) -> bool;
+    /// True when `law` (or, for effects acting on the transmission, `rig` when given)
+    /// already holds this effect (diagnose then skips it).
+    fn present_in(&self, law: &RopeLaw, rig: Option<&RigSpec>) -> bool;
     /// Adds the effect with parameter values `values` to the rope law and, when it acts
     /// on the transmission, to the rig.
     fn apply(
@@ -122,6 +126,7 @@ pub static REGISTRY: &[&dyn Effect] = &[
     &extra_retardation::ExtraRetardation,
     &nonlinear_creep::NonlinearCreepEffect,
     &plastic_ratchet::PlasticRatchet,
+    &relay_friction::RelayFrictionEffect,
 ];
 
 /// The registered effect called `name`.

@@ -46,7 +46,7 @@ impl Effect for NonlinearCreepEffect {
     fn applies_to(&self, kind: DataKind) -> bool {
         kind != DataKind::SineSweep
     }
-    fn present_in(&self, law: &RopeLaw) -> bool {
+    fn present_in(&self, law: &RopeLaw, _rig: Option<&RigSpec>) -> bool {
         law.creep.is_some() || law.c2_n_s.is_none()
     }
     fn apply(

@@ -36,7 +36,7 @@ impl Effect for NonlinearStiffness {
     fn applies_to(&self, _kind: DataKind) -> bool {
         true
     }
-    fn present_in(&self, law: &RopeLaw) -> bool {
+    fn present_in(&self, law: &RopeLaw, _rig: Option<&RigSpec>) -> bool {
         law.stiffening_per_n > 0.0
     }
     fn apply(

@@ -38,7 +38,7 @@ impl Effect for PlasticRatchet {
     fn applies_to(&self, kind: DataKind) -> bool {
         kind != DataKind::SineSweep
     }
-    fn present_in(&self, law: &RopeLaw) -> bool {
+    fn present_in(&self, law: &RopeLaw, _rig: Option<&RigSpec>) -> bool {
         law.kp_n.is_some()
     }
     fn apply(

@@ -1,0 +1,71 @@
+//! `relay_friction` hidden in a synthetic sweep (through the registry, as
+//! `longreach synth --effect relay_friction=C,J` does) is named by `diagnose`, with its
+//! coefficient recovered.
+
+use longreach_drive::effects;
+use longreach_ident::analysis::{diagnose, Prepared};
+use longreach_ident::model::{Model, ParamDef};
+use longreach_ident::synth::{self, SweepOptions};
+use longreach_ident::Dataset;
+
+/// Hidden bearing coefficient and pulley inertia.
+const COEFFICIENT: f64 = 0.003;
+const INERTIA_KG_M2: f64 = 2e-5;
+
+#[test]
+fn diagnose_names_relay_friction_and_recovers_the_coefficient() {
+    let e = effects::find("relay_friction").expect("relay_friction is registered");
+    assert!(e.doc().len() > 100);
+    // Two amplitudes at one tension and a third run at another tension: dry friction
+    // shows as amplitude dependence.
+    let mut opt = SweepOptions::paper("dyneema2", 7);
+    opt.runs = vec![
+        (147.0, 4.5f64.to_radians()),
+        (147.0, 1.5f64.to_radians()),
+        (294.0, 3f64.to_radians()),
+    ];
+    opt.frequencies_hz = vec![0.5, 1.0, 1.5, 1.8, 2.1, 2.4, 2.7, 3.0, 3.5, 4.5];
+    opt.settle_s = 2.0;
+    opt.min_hold_s = 2.0;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("relay");
+    let ds0 = Dataset::load(
+        // Any sweep dataset gives the baseline its rope and rig; synth writes the data.
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../data/examples/example_sweep_control"),
+    )
+    .unwrap();
+    let mut base = Model::baseline(&ds0).unwrap();
+    base.base = vec![ParamDef::fitted("k1_scale", "1", 1.0, 0.2, 5.0)];
+    let mut truth = base.with_effect(e);
+    truth.effects[0].params[0].value = COEFFICIENT;
+    truth.effects[0].params[1].value = INERTIA_KG_M2;
+    synth::sweep(&truth, &opt)
+        .unwrap()
+        .write(&path, "relay friction hidden")
+        .unwrap();
+    let ds = Dataset::load(&path).unwrap();
+    let prep = Prepared::new(&ds).unwrap();
+    let (d, base_fit, _) = diagnose(&prep, &base).unwrap();
+    eprintln!(
+        "baseline nrmse {:.4} (floor {:.4}); candidates {:?}; missing {:?}\n{}",
+        base_fit.nrmse,
+        base_fit.noise_floor,
+        d.candidates
+            .iter()
+            .map(|c| (c.effect.as_str(), c.nrmse, c.score, c.params.clone()))
+            .collect::<Vec<_>>(),
+        d.missing_effect,
+        d.explanation
+    );
+    assert_eq!(
+        d.candidates[0].effect, "relay_friction",
+        "{}",
+        d.explanation
+    );
+    let c = d.candidates[0].params["coefficient"];
+    assert!(
+        (c / COEFFICIENT - 1.0).abs() < 0.2,
+        "coefficient {c} vs hidden {COEFFICIENT}"
+    );
+}
