@@ -1,5 +1,6 @@
 //! Driven-arm step cost (one core, dt = 1 ms): the realistic longreach5 arm with
-//! four-element ropes, the MuJoCo anchor arm5 with elastic ropes (compare with
+//! four-element ropes, without and with relay friction (issue 4: >= 200x real time, i.e.
+//! <= 5 us/step, with relay friction on), the MuJoCo anchor arm5 with elastic ropes (compare with
 //! `../shared/anchors/mujoco/run.sh` in the same session), and the cost against the
 //! number of links (3, 6, 12).
 //!
@@ -8,9 +9,8 @@
 use std::path::Path;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use longreach_arm::transmission::{uniform_pairs, MotorMode, MotorSpec, TensionerKind};
-use longreach_arm::{chain_urdf, parse_urdf, Command, DrivenArm};
-use longreach_rope::{Catalog, LawKind, RopeLaw};
+use longreach_arm::DrivenArm;
+use longreach_rope::LawKind;
 
 fn scenario(name: &str) -> DrivenArm {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -34,36 +34,13 @@ fn bench_arm(c: &mut Criterion, label: &str, arm: &DrivenArm) {
 }
 
 fn chain(n: usize, kind: LawKind) -> DrivenArm {
-    let spec = parse_urdf(&chain_urdf(n, 10.0 / n as f64, 50.0 / n as f64), "chain").unwrap();
-    let name = if kind == LawKind::Elastic {
-        "stainless1"
-    } else {
-        "dyneema2"
-    };
-    let params = Catalog::builtin().get(name).unwrap().clone();
-    let law = RopeLaw::from_params(&params, kind).unwrap();
-    let motor = MotorSpec {
-        inertia_kg_m2: 0.0,
-        damping_n_m_s: 0.0,
-        mode: MotorMode::Kinematic,
-    };
-    let pairs = uniform_pairs(
-        &spec,
-        name,
-        &params,
-        &law,
-        0.025,
-        20000.0,
-        TensionerKind::Fixed,
-        motor,
-        0.5,
-    );
-    let mut cmds = vec![Command::Hold; n];
-    cmds[n - 1] = Command::Step {
-        to_rad: 0.0872664626,
-        at_s: 0.0,
-    };
-    DrivenArm::new(spec, pairs, cmds, vec![0.0; n], 1e-3).unwrap()
+    longreach_arm::anchor_chain(n, kind, 1e-3).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// longreach5 with dyneema2 four-element ropes and relay friction on every pair
+/// (`scenarios/arm_dyneema2_base_step_relay_friction.toml`).
+fn longreach5_relay_friction() -> DrivenArm {
+    scenario("arm_dyneema2_base_step_relay_friction.toml")
 }
 
 fn arm_benches(c: &mut Criterion) {
@@ -71,6 +48,11 @@ fn arm_benches(c: &mut Criterion) {
         c,
         "longreach5_dyneema2_four_element_servo_step",
         &scenario("arm_dyneema2_base_step.toml"),
+    );
+    bench_arm(
+        c,
+        "longreach5 four-element, relay friction on",
+        &longreach5_relay_friction(),
     );
     bench_arm(
         c,

@@ -81,3 +81,77 @@ fn arm_batch_rows_equal_direct_runs() {
     assert_ne!(rows[0][2], rows[1][2]);
     assert_eq!(row[row.len() - 2], "ok");
 }
+
+/// The shipped rope x preload x payload study (scenarios/batch_arm_ropes_preloads_payloads.toml)
+/// through the CLI: 8 rows, and every metric that a payload should worsen does.
+#[test]
+fn arm_rope_preload_payload_study_is_monotone_in_payload() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    let batch = scenarios().join("batch_arm_ropes_preloads_payloads.toml");
+    let o = Command::new(env!("CARGO_BIN_EXE_longreach"))
+        .args([
+            "batch",
+            batch.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let csv = std::fs::read_to_string(out.join("results.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| *h == name)
+            .unwrap_or_else(|| panic!("no column {name} in {header:?}"))
+    };
+    let (payload, sag, settle, peak) = (
+        col("payload.mass_kg"),
+        col("tip_error_m"),
+        col("j1_settling_time_s"),
+        col("j1_peak_tension_n"),
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 8);
+    let num = |r: &[&str], c: usize| -> f64 {
+        r[c].parse()
+            .unwrap_or_else(|_| panic!("column {} = '{}' in {r:?}", header[c], r[c]))
+    };
+    // index = 4 rope + 2 preload + payload: rows 2k and 2k + 1 differ only by payload.
+    for k in 0..4 {
+        let (light, heavy) = (&rows[2 * k], &rows[2 * k + 1]);
+        assert!(num(light, payload).abs() < 1e-12, "{light:?}");
+        assert!((num(heavy, payload) - 6.0).abs() < 1e-12, "{heavy:?}");
+        println!(
+            "{} preload {}: tip sag {:.3} -> {:.3} mm, j1 settling {:.3} -> {:.3} s, peak {:.0} -> {:.0} N",
+            light[1],
+            light[2],
+            1e3 * num(light, sag),
+            1e3 * num(heavy, sag),
+            num(light, settle),
+            num(heavy, settle),
+            num(light, peak),
+            num(heavy, peak)
+        );
+        assert!(
+            num(heavy, sag) > num(light, sag),
+            "sag {light:?} vs {heavy:?}"
+        );
+        assert!(
+            num(heavy, settle) >= num(light, settle),
+            "settling {light:?} vs {heavy:?}"
+        );
+        assert!(
+            num(heavy, peak) > num(light, peak),
+            "peak {light:?} vs {heavy:?}"
+        );
+    }
+}

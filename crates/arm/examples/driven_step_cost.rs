@@ -5,37 +5,8 @@
 use std::path::Path;
 use std::time::Instant;
 
-use longreach_arm::transmission::{uniform_pairs, MotorMode, MotorSpec, TensionerKind};
-use longreach_arm::{chain_urdf, parse_urdf, Command, DrivenArm};
-use longreach_rope::{Catalog, LawKind, RopeLaw};
-
-fn chain(n: usize) -> DrivenArm {
-    let spec = parse_urdf(&chain_urdf(n, 10.0 / n as f64, 50.0 / n as f64), "chain").unwrap();
-    let params = Catalog::builtin().get("stainless1").unwrap().clone();
-    let law = RopeLaw::from_params(&params, LawKind::Elastic).unwrap();
-    let motor = MotorSpec {
-        inertia_kg_m2: 0.0,
-        damping_n_m_s: 0.0,
-        mode: MotorMode::Kinematic,
-    };
-    let pairs = uniform_pairs(
-        &spec,
-        "stainless1",
-        &params,
-        &law,
-        0.025,
-        20000.0,
-        TensionerKind::Fixed,
-        motor,
-        0.5,
-    );
-    let mut cmds = vec![Command::Hold; n];
-    cmds[n - 1] = Command::Step {
-        to_rad: 0.0872664626,
-        at_s: 0.0,
-    };
-    DrivenArm::new(spec, pairs, cmds, vec![0.0; n], 1e-3).unwrap()
-}
+use longreach_arm::{anchor_chain, DrivenArm};
+use longreach_rope::LawKind;
 
 /// CPU time of this thread, ns (first field of /proc/thread-self/schedstat; 0 when
 /// unavailable).
@@ -78,7 +49,12 @@ fn main() {
         "arm5 elastic stainless1 (MuJoCo anchor)",
         &load("arm5_elastic_stainless1.toml"),
     );
+    time(
+        "longreach5 dyneema2 four-element servo, relay friction on",
+        &load("arm_dyneema2_base_step_relay_friction.toml"),
+    );
     for n in [3, 6, 12] {
-        time(&format!("chain{n} elastic"), &chain(n));
+        let arm = anchor_chain(n, LawKind::Elastic, 1e-3).unwrap_or_else(|e| panic!("{e}"));
+        time(&format!("chain{n} elastic"), &arm);
     }
 }

@@ -60,6 +60,14 @@ pub enum ArmError {
     /// The spec failed validation.
     #[error(transparent)]
     InvalidSpec(#[from] SpecError),
+    /// A generated arm ([`crate::generate`]) could not be built from its arguments.
+    #[error("generated arm '{arm}': {reason}")]
+    Generated {
+        /// Which generated arm.
+        arm: String,
+        /// What is wrong and what to do.
+        reason: String,
+    },
     /// A transmission (rope pair, motor, route) is not usable.
     #[error("{field}: {reason}")]
     BadTransmission {

@@ -1,6 +1,75 @@
-//! Generated URDFs: uniform planar chains, for benchmarks of cost against link count.
+//! Generated URDFs: uniform planar chains, for benchmarks of cost against link count,
+//! and [`anchor_chain`], such a chain driven like the MuJoCo anchor arm.
 
 use std::fmt::Write;
+
+use longreach_rope::{Catalog, LawKind, RopeLaw};
+
+use crate::transmission::{uniform_pairs, MotorMode, MotorSpec, TensionerKind};
+use crate::{parse_urdf, ArmError, Command, DrivenArm};
+
+/// Pulley radius of every pulley of [`anchor_chain`] (motor, joint, relays), m (the
+/// tendon coefficients of `arm5_elastic.xml`).
+pub const ANCHOR_PULLEY_RADIUS_M: f64 = 0.025;
+/// Preload per rope of [`anchor_chain`], N.
+pub const ANCHOR_PRELOAD_N: f64 = 20000.0;
+/// Rope span from the motor pulley to the first joint of [`anchor_chain`], m.
+pub const ANCHOR_MOTOR_OFFSET_M: f64 = 0.5;
+
+/// A chain of `n_links` links, 10 m and 50 kg in total ([`chain_urdf`]`(n, 10/n, 50/n)`),
+/// driven like the MuJoCo anchor arm (`../shared/anchors/mujoco/arm5_elastic.xml`;
+/// `anchor_chain(5, LawKind::Elastic)` is that arm): one rope pair per joint, relays at
+/// every proximal joint, every pulley [`ANCHOR_PULLEY_RADIUS_M`], one rope per side
+/// pre-tensioned to [`ANCHOR_PRELOAD_N`], fixed tensioners, kinematic motors (MuJoCo's
+/// huge-armature motors), the motor [`ANCHOR_MOTOR_OFFSET_M`] before the first joint;
+/// stainless1 ropes for `LawKind::Elastic`, dyneema2 otherwise; steps of `dt_s`. The
+/// last joint steps by 5 deg at t = 0, every other joint is held. Used by the arm
+/// benchmark (benches/arm.rs) and `examples/driven_step_cost.rs`.
+pub fn anchor_chain(n_links: usize, kind: LawKind, dt_s: f64) -> Result<DrivenArm, ArmError> {
+    let name = format!("chain{n_links}");
+    let fail = |reason: String| ArmError::Generated {
+        arm: name.clone(),
+        reason,
+    };
+    if n_links == 0 {
+        return Err(fail("needs at least one link".into()));
+    }
+    let n = n_links as f64;
+    let spec = parse_urdf(&chain_urdf(n_links, 10.0 / n, 50.0 / n), &name)
+        .map_err(|e| fail(e.to_string()))?;
+    let rope = if kind == LawKind::Elastic {
+        "stainless1"
+    } else {
+        "dyneema2"
+    };
+    let params = Catalog::builtin()
+        .get(rope)
+        .map_err(|e| fail(e.to_string()))?
+        .clone();
+    let law = RopeLaw::from_params(&params, kind).map_err(|e| fail(e.to_string()))?;
+    let motor = MotorSpec {
+        inertia_kg_m2: 0.0,
+        damping_n_m_s: 0.0,
+        mode: MotorMode::Kinematic,
+    };
+    let pairs = uniform_pairs(
+        &spec,
+        rope,
+        &params,
+        &law,
+        ANCHOR_PULLEY_RADIUS_M,
+        ANCHOR_PRELOAD_N,
+        TensionerKind::Fixed,
+        motor,
+        ANCHOR_MOTOR_OFFSET_M,
+    );
+    let mut commands = vec![Command::Hold; n_links];
+    commands[n_links - 1] = Command::Step {
+        to_rad: 5f64.to_radians(),
+        at_s: 0.0,
+    };
+    DrivenArm::new(spec, pairs, commands, vec![0.0; n_links], dt_s)
+}
 
 /// Outer radius of the generated link tubes, m (aluminium tube OD 150 mm, as the
 /// MuJoCo anchor `arm5_elastic.xml`).

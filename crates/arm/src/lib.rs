@@ -8,6 +8,7 @@
 //!   [`energy`], mass matrix, inverse and forward dynamics.
 //! - [`generate`]: [`chain_urdf`], uniform planar chains for benchmarks.
 //! - [`transmission`]: rope pairs, relays, routing matrix `R`, motors.
+//! - [`relay`]: relay-pulley friction: ropes split into spans, relay pulley states.
 //! - [`system`]: [`DrivenArm`] / [`DrivenState`]: links + ropes + motors + servos,
 //!   integrated implicitly (trapezoidal rule, exact-hold ropes, Newton); see docs/arm.md.
 //! - [`fast`]: allocation-free kinematics, Newton-Euler and mass matrix for the step.
@@ -20,6 +21,7 @@ pub mod error;
 pub mod fast;
 pub mod generate;
 pub mod multibody;
+pub mod relay;
 pub mod run;
 pub mod scenario;
 pub mod spec;
@@ -30,7 +32,7 @@ pub mod urdf;
 pub use command::Command;
 pub use dynamics::{energy, gravity_torques, Energy};
 pub use error::ArmError;
-pub use generate::chain_urdf;
+pub use generate::{anchor_chain, chain_urdf};
 pub use multibody::{step, ArmData, ArmModel, ModelOptions};
 pub use spec::{ArmSpec, Element, Frame, Inertial, JointKind, JointSpec, LinkSpec, SpecError};
 pub use system::{DrivenArm, DrivenState, StaticPair, SystemEnergy};

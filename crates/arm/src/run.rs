@@ -39,7 +39,7 @@ pub struct PairMetrics {
     pub rope: String,
     /// Ropes in parallel per side.
     pub ropes_in_parallel: u32,
-    /// Largest tension of any one rope of the pair, N.
+    /// Largest tension of any one rope (any span, with relay friction) of the pair, N.
     pub peak_tension_n: f64,
     /// Smallest tension of any one rope, N.
     pub min_tension_n: f64,
@@ -78,8 +78,19 @@ pub fn columns(arm: &DrivenArm) -> Vec<String> {
     }
     for p in &arm.pairs {
         let name = &arm.spec.joints[p.spec.joint].name;
-        c.push(format!("tension_{name}_pos_n"));
-        c.push(format!("tension_{name}_neg_n"));
+        match &p.relays {
+            None => {
+                c.push(format!("tension_{name}_pos_n"));
+                c.push(format!("tension_{name}_neg_n"));
+            }
+            Some(r) => {
+                // Span 0 starts at the motor pulley, span i at relay i-1.
+                for i in 0..r.spans() {
+                    c.push(format!("tension_{name}_pos_span{i}_n"));
+                    c.push(format!("tension_{name}_neg_span{i}_n"));
+                }
+            }
+        }
     }
     c.extend(["tip_x_m", "tip_y_m", "tip_z_m"].map(String::from));
     c
@@ -92,9 +103,16 @@ fn row(arm: &DrivenArm, st: &DrivenState) -> Vec<f64> {
         r.push(st.q_ref_rad[j]);
     }
     r.extend(&st.motor_rad);
-    for pr in &st.ropes {
-        r.push(pr[0].tension_n);
-        r.push(pr[1].tension_n);
+    for (p, pr) in st.ropes.iter().enumerate() {
+        if arm.pairs[p].relays.is_some() {
+            for span in &st.relays[p].spans {
+                r.push(span[0].tension_n);
+                r.push(span[1].tension_n);
+            }
+        } else {
+            r.push(pr[0].tension_n);
+            r.push(pr[1].tension_n);
+        }
     }
     let tip = arm.tip_m(&st.q_rad);
     r.extend([tip.x, tip.y, tip.z]);
@@ -155,32 +173,40 @@ pub fn run_observed(
     let mut peak = vec![0.0f64; np];
     let mut min = vec![f64::INFINITY; np];
     let mut slack = vec![0u32; np];
-    for p in 0..np {
-        for r in &st.ropes[p] {
-            peak[p] = peak[p].max(r.tension_n);
-            min[p] = min[p].min(r.tension_n);
+    // Tension of every rope, or of every span of a rope with relay friction, and the
+    // pair it belongs to.
+    let tensions_into = |st: &DrivenState, out: &mut Vec<(usize, f64)>| {
+        out.clear();
+        for p in 0..np {
+            if arm.pairs[p].relays.is_some() {
+                for span in &st.relays[p].spans {
+                    out.extend(span.iter().map(|r| (p, r.tension_n)));
+                }
+            } else {
+                out.extend(st.ropes[p].iter().map(|r| (p, r.tension_n)));
+            }
         }
+    };
+    let (mut was, mut now) = (Vec::new(), Vec::new());
+    tensions_into(&st, &mut was);
+    for &(p, f) in &was {
+        peak[p] = peak[p].max(f);
+        min[p] = min[p].min(f);
     }
     let mut iters = 0u64;
     for i in 1..=steps {
-        let was: Vec<[bool; 2]> = st
-            .ropes
-            .iter()
-            .map(|r| [r[0].tension_n > 0.0, r[1].tension_n > 0.0])
-            .collect();
         arm.step(&mut st)?;
         observe(&st);
         iters += u64::from(st.iterations);
-        for p in 0..np {
-            for s in 0..2 {
-                let f = st.ropes[p][s].tension_n;
-                peak[p] = peak[p].max(f);
-                min[p] = min[p].min(f);
-                if was[p][s] && f <= 0.0 {
-                    slack[p] += 1;
-                }
+        tensions_into(&st, &mut now);
+        for (&(p, f), &(_, f0)) in now.iter().zip(&was) {
+            peak[p] = peak[p].max(f);
+            min[p] = min[p].min(f);
+            if f0 > 0.0 && f <= 0.0 {
+                slack[p] += 1;
             }
         }
+        std::mem::swap(&mut was, &mut now);
         t_hist.push(st.time_s);
         for (j, h) in q_hist.iter_mut().enumerate() {
             h.push(st.q_rad[j]);

@@ -23,6 +23,19 @@ struct ArmFile {
     transmission_defaults: Option<toml::Table>,
     #[serde(default)]
     transmission: Vec<toml::Table>,
+    #[serde(default)]
+    payload: Option<PayloadSection>,
+}
+
+/// `[payload]`: a point mass carried by a link.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PayloadSection {
+    mass_kg: f64,
+    #[serde(default)]
+    link: Option<String>,
+    #[serde(default)]
+    offset_m: Option<[f64; 3]>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -95,6 +108,8 @@ struct TransmissionSection {
     tensioner: Option<String>,
     #[serde(default)]
     effects: Vec<EffectSection>,
+    #[serde(default)]
+    relay_friction: Option<RelayFrictionSection>,
     motor: MotorSection,
     #[serde(default)]
     command: Option<CommandSection>,
@@ -111,6 +126,19 @@ struct RelaySection {
 
 fn plus() -> f64 {
     1.0
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RelayFrictionSection {
+    coefficient: f64,
+    inertia_kg_m2: f64,
+    #[serde(default = "slip_rate")]
+    slip_rate_rad_s: f64,
+}
+
+fn slip_rate() -> f64 {
+    longreach_drive::RelayFriction::DEFAULT_SLIP_RATE_RAD_S
 }
 
 #[derive(Debug, Deserialize)]
@@ -221,6 +249,39 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
     if !doc.arm.gravity {
         spec.gravity_m_s2 = nalgebra::Vector3::zeros();
     }
+    if let Some(pl) = &doc.payload {
+        if !(pl.mass_kg.is_finite() && pl.mass_kg >= 0.0) {
+            return Err(ferr(
+                "payload.mass_kg",
+                format!("mass_kg = {}", pl.mass_kg),
+                "give the payload mass in kg, >= 0",
+            ));
+        }
+        if let Some(o) = pl.offset_m.filter(|o| o.iter().any(|v| !v.is_finite())) {
+            return Err(ferr(
+                "payload.offset_m",
+                format!("offset_m = {o:?}"),
+                "give three finite coordinates in m, in the frame of the payload link",
+            ));
+        }
+        let link = pl
+            .link
+            .clone()
+            .or_else(|| spec.links.last().map(|l| l.name.clone()))
+            .unwrap_or_default();
+        let offset = nalgebra::Vector3::from(pl.offset_m.unwrap_or([0.0; 3]));
+        spec.add_payload(&link, pl.mass_kg, offset).map_err(|e| {
+            ferr(
+                if pl.link.is_some() {
+                    "payload.link"
+                } else {
+                    "payload"
+                },
+                e.to_string(),
+                "name a moving URDF link (or a link fixed to one, such as the tip) in payload.link",
+            )
+        })?;
+    }
     let n = spec.ndofs();
     let s = &doc.sim;
     if !(s.dt_s.is_finite() && s.dt_s > 0.0 && s.dt_s <= 0.05) {
@@ -305,6 +366,9 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
         let (rope_name, params, mut law) =
             resolve_rope(text, file, &f("rope"), &sec.rope, sec.law)?;
         let mut effects = Vec::new();
+        // Relay friction from the registry form `effects = [{ name = "relay_friction",
+        // params = [coefficient, inertia_kg_m2] }]` (parameters matched by name).
+        let mut registry_relay: Option<longreach_drive::RelayFriction> = None;
         for (e_i, e) in sec.effects.iter().enumerate() {
             let eff = longreach_drive::effects::find(&e.name).ok_or_else(|| {
                 ferr(
@@ -328,6 +392,36 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
                     "give one value per parameter, within its bounds",
                 )
             })?;
+            if e.name == "relay_friction" {
+                let named = |name: &str| {
+                    eff.params()
+                        .iter()
+                        .position(|p| p.name == name)
+                        .and_then(|k| values.get(k).copied())
+                };
+                let (Some(coefficient), Some(inertia_kg_m2)) =
+                    (named("coefficient"), named("inertia_kg_m2"))
+                else {
+                    return Err(ferr(
+                        &f(&format!("effects.{e_i}")),
+                        "the registry's relay_friction has no coefficient / inertia_kg_m2 parameter".into(),
+                        "use the table form: relay_friction = { coefficient = 0.01, inertia_kg_m2 = 1e-4 }",
+                    ));
+                };
+                if sec.relay_friction.is_some() {
+                    return Err(ferr(
+                        &f(&format!("effects.{e_i}")),
+                        "relay friction given twice (as an effect and as relay_friction = {...})"
+                            .into(),
+                        "keep one of the two",
+                    ));
+                }
+                registry_relay = Some(longreach_drive::RelayFriction {
+                    coefficient,
+                    inertia_kg_m2,
+                    slip_rate_rad_s: longreach_drive::RelayFriction::DEFAULT_SLIP_RATE_RAD_S,
+                });
+            }
             effects.push(e.name.clone());
         }
         let route = match &sec.route {
@@ -394,6 +488,40 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
                 ))
             }
         };
+        let relay_friction = match &sec.relay_friction {
+            None => registry_relay,
+            Some(r) => {
+                let rf = longreach_drive::RelayFriction {
+                    coefficient: r.coefficient,
+                    inertia_kg_m2: r.inertia_kg_m2,
+                    slip_rate_rad_s: r.slip_rate_rad_s,
+                };
+                if let Err(e) = rf.validate() {
+                    // Point at the key in this transmission, or in the defaults.
+                    let key = match &e {
+                        longreach_drive::DriveError::BadParameter { field, .. } => field
+                            .rsplit('.')
+                            .next()
+                            .unwrap_or("coefficient")
+                            .to_string(),
+                        _ => "coefficient".into(),
+                    };
+                    let own = format!("transmission.{i}.relay_friction");
+                    let in_own = doc.transmission[i].contains_key("relay_friction");
+                    let field = if in_own || doc.transmission_defaults.is_none() {
+                        format!("{own}.{key}")
+                    } else {
+                        format!("transmission_defaults.relay_friction.{key}")
+                    };
+                    return Err(ferr(
+                        &field,
+                        e.to_string(),
+                        "coefficient in [0, 1) (bearing mu_b r_b / r, typically 0.001-0.05), inertia_kg_m2 >= 0, slip_rate_rad_s > 0",
+                    ));
+                }
+                Some(rf)
+            }
+        };
         pairs.push(PairSpec {
             joint: j,
             rope_name,
@@ -414,6 +542,7 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
                 mode,
             },
             effects,
+            relay_friction,
         });
         if let Some(c) = &sec.command {
             commands[j] = parse_command(c, &f("command"), base, &ferr)?;

@@ -315,6 +315,52 @@ impl ArmSpec {
         }
     }
 
+    /// Adds a payload: a point mass of `mass_kg` at `offset_m` in the frame `frame`
+    /// (any URDF link, merged or not), merged into the inertial of the moving link that
+    /// carries the frame (parallel-axis theorem, [`Inertial::combined`]). Everything
+    /// built from the spec afterwards (dynamics, gravity feed-forward, statics) sees it.
+    pub fn add_payload(
+        &mut self,
+        frame: &str,
+        mass_kg: f64,
+        offset_m: Vector3<f64>,
+    ) -> Result<(), SpecError> {
+        if !(mass_kg.is_finite() && mass_kg >= 0.0) || offset_m.iter().any(|v| !v.is_finite()) {
+            return Err(self.err(
+                Element::Link(frame.to_string()),
+                format!("payload mass {mass_kg} kg at {offset_m:?} m: need a finite mass >= 0 and a finite offset"),
+            ));
+        }
+        let Some(f) = self.frame(frame).cloned() else {
+            return Err(self.err(
+                Element::Arm,
+                format!(
+                    "no link named '{frame}' to carry the payload; links: {}",
+                    self.frames
+                        .iter()
+                        .map(|f| f.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ));
+        };
+        if f.link == 0 {
+            return Err(self.err(
+                Element::Link(frame.to_string()),
+                "is fixed to the base: a payload there does not load any joint; name a moving link"
+                    .into(),
+            ));
+        }
+        let point = Inertial {
+            mass_kg,
+            com_m: f.link_from_frame.transform_point(&offset_m.into()).coords,
+            inertia_kg_m2: Matrix3::zeros(),
+        };
+        let link = &mut self.links[f.link];
+        link.inertial = link.inertial.combined(&point);
+        Ok(())
+    }
+
     fn err(&self, element: Element, reason: String) -> SpecError {
         SpecError {
             source_name: self.source.clone(),

@@ -30,6 +30,7 @@
 use crate::command::Command;
 use crate::error::ArmError;
 use crate::fast::{cholesky_in_place, cholesky_solve, FastDynamics, Kin};
+use crate::relay::{self, Assembly, CompiledRelays, Local, MotorRow, RelayScratch, RelayState};
 use crate::spec::ArmSpec;
 use crate::transmission::{CompiledPair, MotorMode, PairSpec, RoutingMatrix, TensionerKind};
 use longreach_rope::{PreparedStep, RopeState, RopeStepper};
@@ -59,6 +60,8 @@ pub struct DrivenArm {
     ff_map: Vec<f64>,
     /// Driven joint of each row of `ff_map`'s input.
     driven: Vec<usize>,
+    /// Some pair has relay friction: the joint matrix is solved by LU.
+    any_friction: bool,
 }
 
 /// Mutable state of a [`DrivenArm`] (and its scratch).
@@ -86,8 +89,11 @@ pub struct DrivenState {
     pub motor_torque_n_m: Vec<f64>,
     /// Common stretch of each pair held by its tensioner, m.
     pub carriage_m: Vec<f64>,
-    /// Rope states `[+, -]` of each pair (one rope of the `n` in parallel).
+    /// Rope states `[+, -]` of each pair (one rope of the `n` in parallel); for a pair
+    /// with relay friction, the motor-side span (every span is in `relays`).
     pub ropes: Vec<[RopeState; 2]>,
+    /// Spans and relay pulleys of each pair with relay friction (empty otherwise).
+    pub relays: Vec<RelayState>,
     /// Newton iterations of the last step.
     pub iterations: u32,
     scratch: Scratch,
@@ -119,6 +125,11 @@ struct Scratch {
     th1: Vec<f64>,
     x1: Vec<f64>,
     torque: Vec<f64>,
+    /// Per pair with relay friction: its local block.
+    relay: Vec<Option<RelayScratch>>,
+    /// Pivots and scratch of the joint LU (arms with relay friction).
+    perm: Vec<usize>,
+    lu_tmp: Vec<f64>,
 }
 
 /// What the static map gives for one pair at a pose.
@@ -151,6 +162,8 @@ pub struct SystemEnergy {
     pub ropes_j: f64,
     /// Constant-force tensioners, `-2 n T x`.
     pub tensioners_j: f64,
+    /// Relay pulleys (rotation relative to their mounts; every parallel rope's own).
+    pub relays_kinetic_j: f64,
 }
 
 impl SystemEnergy {
@@ -161,6 +174,7 @@ impl SystemEnergy {
             + self.motors_kinetic_j
             + self.ropes_j
             + self.tensioners_j
+            + self.relays_kinetic_j
     }
 }
 
@@ -298,6 +312,20 @@ impl DrivenArm {
                 .map_err(|e| bad(&field("rope"), e.to_string()))?;
             let row = p.routing_row(n);
             let nz = (0..n).filter(|&k| row[k] != 0.0).collect();
+            let relays = match p.relay_friction {
+                None => None,
+                Some(rf) => {
+                    rf.validate().map_err(|e| {
+                        bad(
+                            &field("relay_friction"),
+                            format!(
+                                "{e}; typical: coefficient 0.001-0.05, inertia 1e-5-1e-2 kg*m^2"
+                            ),
+                        )
+                    })?;
+                    Some(CompiledRelays::new(&spec, p, rf))
+                }
+            };
             compiled.push(CompiledPair {
                 spec: p.clone(),
                 stepper,
@@ -305,6 +333,7 @@ impl DrivenArm {
                 nz,
                 inv_length: 1.0 / p.length_m,
                 n: f64::from(p.ropes_in_parallel),
+                relays,
             });
         }
         let routing = RoutingMatrix::new(&pairs, n);
@@ -334,7 +363,9 @@ impl DrivenArm {
             }
             v
         };
+        let any_friction = compiled.iter().any(|p| p.relays.is_some());
         Ok(Self {
+            any_friction,
             dynamics: FastDynamics::new(&spec),
             damping: spec
                 .joints
@@ -397,6 +428,16 @@ impl DrivenArm {
             x1: vec![0.0; np],
             torque: vec![0.0; np],
             prep: prep0.map_or_else(Vec::new, |p| vec![[p; 2]; np]),
+            relay: self
+                .pairs
+                .iter()
+                .map(|p| {
+                    let prep = p.stepper.prepare(&p.stepper.rest_state(0.0, 0.0));
+                    p.relays.as_ref().map(|c| RelayScratch::new(c, prep))
+                })
+                .collect(),
+            perm: vec![0; n],
+            lu_tmp: vec![0.0; n],
         }
     }
 
@@ -476,6 +517,7 @@ impl DrivenArm {
             motor_torque_n_m: vec![0.0; np],
             carriage_m: vec![0.0; np],
             ropes: vec![[RopeState::default(); 2]; np],
+            relays: vec![RelayState::default(); np],
             iterations: 0,
             scratch: self.make_scratch(),
         };
@@ -493,6 +535,19 @@ impl DrivenArm {
             rm.strain = (s.x_m - s.u_m) * pair.inv_length;
             st.ropes[p] = [rp, rm];
             st.motor_torque_n_m[p] = pair.spec.motor_radius_m * s.phi_n;
+            if let Some(c) = &pair.relays {
+                st.relays[p] = RelayState::at_rest(
+                    c,
+                    &pair.stepper,
+                    pair.spec.motor_radius_m,
+                    pair.spec.prestretch_n,
+                    [s.f_pos_n, s.f_neg_n],
+                    &st.q_rad,
+                    th,
+                    s.x_m,
+                );
+                st.ropes[p] = st.relays[p].spans[0];
+            }
         }
         st
     }
@@ -506,11 +561,22 @@ impl DrivenArm {
         let mut motors = 0.0;
         let mut ropes = 0.0;
         let mut tens = 0.0;
+        let mut relays = 0.0;
         for (p, pair) in self.pairs.iter().enumerate() {
             let w = st.motor_rate_rad_s[p];
             motors += 0.5 * pair.spec.motor.inertia_kg_m2 * w * w;
-            for r in &st.ropes[p] {
-                ropes += pair.n * pair.stepper.stored_energy_j(r, pair.spec.length_m);
+            if let Some(c) = &pair.relays {
+                let rs = &st.relays[p];
+                for (span, len) in rs.spans.iter().zip(&c.span_length_m) {
+                    for r in span {
+                        ropes += pair.n * pair.stepper.stored_energy_j(r, *len);
+                    }
+                }
+                relays += pair.n * rs.kinetic_j(c);
+            } else {
+                for r in &st.ropes[p] {
+                    ropes += pair.n * pair.stepper.stored_energy_j(r, pair.spec.length_m);
+                }
             }
             if pair.spec.tensioner == TensionerKind::ConstantForce {
                 tens -= 2.0 * pair.n * pair.spec.preload_n * st.carriage_m[p];
@@ -522,6 +588,7 @@ impl DrivenArm {
             motors_kinetic_j: motors,
             ropes_j: ropes,
             tensioners_j: tens,
+            relays_kinetic_j: relays,
         }
     }
 
@@ -532,7 +599,9 @@ impl DrivenArm {
 
     /// Tensions `[+, -]` (N, per rope) every pair would have at the end of a step from
     /// `st` that ends at joint angles `q_rad`, motor angles `motor_rad` and tensioner
-    /// stretches `carriage_m` (nothing is committed).
+    /// stretches `carriage_m` (nothing is committed). For pairs without relay friction
+    /// only: a pair with friction has one tension per span, and its relay angles are
+    /// unknowns of the step ([`Self::span_tensions_n`] gives them at a state).
     pub fn tensions_at(
         &self,
         st: &DrivenState,
@@ -556,15 +625,47 @@ impl DrivenArm {
             .collect()
     }
 
-    /// Joint torques the ropes exert at the state, `R^T phi`, N*m.
+    /// Joint torques the ropes exert at the state, `R^T phi`, N*m (with relay
+    /// friction, each span loads the joints its pulleys turn with).
     pub fn rope_joint_torques(&self, st: &DrivenState) -> Vec<f64> {
         let phi: Vec<f64> = self
             .pairs
             .iter()
             .enumerate()
-            .map(|(p, pair)| pair.n * (st.ropes[p][0].tension_n - st.ropes[p][1].tension_n))
+            .map(|(p, pair)| {
+                if pair.relays.is_some() {
+                    0.0
+                } else {
+                    pair.n * (st.ropes[p][0].tension_n - st.ropes[p][1].tension_n)
+                }
+            })
             .collect();
-        self.routing.transpose_apply(&phi)
+        let mut tau = self.routing.transpose_apply(&phi);
+        for (p, pair) in self.pairs.iter().enumerate() {
+            if let Some(c) = &pair.relays {
+                let nc = c.cols.len();
+                for (i, span) in st.relays[p].spans.iter().enumerate() {
+                    let df = span[0].tension_n - span[1].tension_n;
+                    for (a, &col) in c.cols.iter().enumerate() {
+                        tau[col] += pair.n * df * c.geometry_m[i * nc + a];
+                    }
+                }
+            }
+        }
+        tau
+    }
+
+    /// Tensions `[+, -]` of every span of pair `p` at the state (motor side first), N
+    /// per rope; one entry for a pair without relay friction.
+    pub fn span_tensions_n(&self, st: &DrivenState, p: usize) -> Vec<[f64; 2]> {
+        match self.pairs[p].relays {
+            Some(_) => st.relays[p]
+                .spans
+                .iter()
+                .map(|s| [s[0].tension_n, s[1].tension_n])
+                .collect(),
+            None => vec![[st.ropes[p][0].tension_n, st.ropes[p][1].tension_n]],
+        }
     }
 
     /// Advances one step of `dt_s`.
@@ -594,6 +695,9 @@ impl DrivenArm {
                 pair.stepper.prepare(&st.ropes[p][0]),
                 pair.stepper.prepare(&st.ropes[p][1]),
             ];
+            if let (Some(c), Some(rs)) = (&pair.relays, sc.relay[p].as_mut()) {
+                relay::begin_step(c, &pair.stepper, rs, h, &st.relays[p]);
+            }
             if same_ref {
                 ref_rate[p] = 0.0;
                 continue;
@@ -647,7 +751,10 @@ impl DrivenArm {
         let mut converged = false;
         let mut iterations = 0;
         let mut flips = 0;
-        for _ in 0..60 {
+        // Relay friction (stick-slip, spans going slack) may need the damped iterations
+        // of `relay::apply_relay_update`.
+        let max_iterations = if self.any_friction { 120 } else { 60 };
+        for _ in 0..max_iterations {
             iterations += 1;
             for j in 0..n {
                 let dq = sc.q1[j] - st.q_rad[j];
@@ -671,8 +778,27 @@ impl DrivenArm {
             }
             sc.kq.copy_from_slice(&sc.mbase);
             let mut retry = false;
+            let mut singular = false;
             for (p, pair) in self.pairs.iter().enumerate() {
                 let s = &pair.spec;
+                if let Some(c) = &pair.relays {
+                    match self.friction_pair_block(
+                        p,
+                        c,
+                        st,
+                        &mut sc,
+                        &th1,
+                        &mut x1,
+                        &ref_rate,
+                        &ff,
+                        &mut torque,
+                    ) {
+                        Assembly::Done => {}
+                        Assembly::Retry => retry = true,
+                        Assembly::Singular => singular = true,
+                    }
+                    continue;
+                }
                 let rm = s.motor_radius_m;
                 let rq: f64 = pair.nz.iter().map(|&k| pair.row[k] * sc.q1[k]).sum();
                 let u = rm * th1[p] - rq;
@@ -762,15 +888,28 @@ impl DrivenArm {
             if retry {
                 continue;
             }
-            if !cholesky_in_place(&mut sc.kq, n) {
+            let factored = if self.any_friction {
+                !singular && relay::lu_in_place(&mut sc.kq, n, &mut sc.perm)
+            } else {
+                cholesky_in_place(&mut sc.kq, n)
+            };
+            if !factored {
                 (sc.ff, sc.ref_rate, sc.th1, sc.x1, sc.torque) = (ff, ref_rate, th1, x1, torque);
                 st.scratch = sc;
                 return Err(ArmError::BlowUp {
                     time_s: t1,
-                    detail: "the Newton matrix of the step is not positive definite".into(),
+                    detail: if self.any_friction {
+                        "the Newton matrix of the step (with relay friction) is singular".into()
+                    } else {
+                        "the Newton matrix of the step is not positive definite".into()
+                    },
                 });
             }
-            cholesky_solve(&sc.kq, n, &mut sc.rhs);
+            if self.any_friction {
+                relay::lu_solve(&sc.kq, n, &sc.perm, &mut sc.rhs, &mut sc.lu_tmp);
+            } else {
+                cholesky_solve(&sc.kq, n, &mut sc.rhs);
+            }
             let mut small = true;
             for j in 0..n {
                 let d = sc.rhs[j];
@@ -780,6 +919,15 @@ impl DrivenArm {
                 }
             }
             for (p, pair) in self.pairs.iter().enumerate() {
+                if let (Some(c), Some(rs)) = (&pair.relays, sc.relay[p].as_mut()) {
+                    if !self.friction_pair_update(p, c, rs, &sc.rhs, &mut th1, &mut x1) {
+                        small = false;
+                    }
+                    if !relay::apply_relay_update(c, rs, &st.relays[p], h, iterations) {
+                        small = false;
+                    }
+                    continue;
+                }
                 let [b11, b12, b21, b22, w0, w1, r0, r1] = sc.local[p];
                 let rdq: f64 = pair.nz.iter().map(|&k| pair.row[k] * sc.rhs[k]).sum();
                 let v = [-r0 + w0 * rdq, -r1 + w1 * rdq];
@@ -843,11 +991,30 @@ impl DrivenArm {
             let rq: f64 = pair.nz.iter().map(|&k| pair.row[k] * sc.q1[k]).sum();
             let u = pair.spec.motor_radius_m * th1[p] - rq;
             let x = x1[p];
-            for (side, sign) in [(0usize, 1.0), (1usize, -1.0)] {
-                let e = (x + sign * u) * pair.inv_length;
-                let (f, _, _) = pair.stepper.tension_piece(&sc.prep[p][side], e);
-                pair.stepper
-                    .commit_with_tension(&sc.prep[p][side], &mut st.ropes[p][side], e, f);
+            if let (Some(c), Some(rs)) = (&pair.relays, sc.relay[p].as_mut()) {
+                relay::commit(
+                    c,
+                    &pair.stepper,
+                    rs,
+                    h,
+                    pair.spec.motor_radius_m,
+                    th1[p],
+                    x,
+                    &sc.q1,
+                    &mut st.relays[p],
+                );
+                st.ropes[p] = st.relays[p].spans[0];
+            } else {
+                for (side, sign) in [(0usize, 1.0), (1usize, -1.0)] {
+                    let e = (x + sign * u) * pair.inv_length;
+                    let (f, _, _) = pair.stepper.tension_piece(&sc.prep[p][side], e);
+                    pair.stepper.commit_with_tension(
+                        &sc.prep[p][side],
+                        &mut st.ropes[p][side],
+                        e,
+                        f,
+                    );
+                }
             }
             let dth = th1[p] - st.motor_rad[p];
             let w1 = two_h * dth - st.motor_rate_rad_s[p];
@@ -873,7 +1040,11 @@ impl DrivenArm {
         st.scratch = sc;
         let finite = st.q_rad.iter().chain(&st.qd_rad_s).all(|v| v.is_finite())
             && st.motor_rad.iter().all(|v| v.is_finite())
-            && st.ropes.iter().flatten().all(|r| r.tension_n.is_finite());
+            && st.ropes.iter().flatten().all(|r| r.tension_n.is_finite())
+            && st
+                .relays
+                .iter()
+                .all(|r| r.spans.iter().flatten().all(|s| s.tension_n.is_finite()));
         if !finite || st.qd_rad_s.iter().any(|v| v.abs() > 1e4) {
             return Err(ArmError::BlowUp {
                 time_s: t1,
@@ -884,6 +1055,114 @@ impl DrivenArm {
             });
         }
         Ok(())
+    }
+
+    /// One Newton iteration's contribution of pair `p` with relay friction (servo
+    /// torque, then [`relay::assemble`]). Kept out of [`Self::step`] so that the step of
+    /// an arm without friction compiles as before.
+    #[inline(never)]
+    fn friction_pair_block(
+        &self,
+        p: usize,
+        c: &CompiledRelays,
+        st: &DrivenState,
+        sc: &mut Scratch,
+        th1: &[f64],
+        x1: &mut [f64],
+        ref_rate: &[f64],
+        ff: &[f64],
+        torque: &mut [f64],
+    ) -> Assembly {
+        let n = self.spec.ndofs();
+        let h = self.dt_s;
+        let (two_h, four_h2) = (2.0 / h, 4.0 / (h * h));
+        let pair = &self.pairs[p];
+        let s = &pair.spec;
+        let motor = match s.motor.mode {
+            MotorMode::Kinematic => MotorRow::Fixed,
+            MotorMode::Servo {
+                kp_n_m_per_rad,
+                kd_n_m_s_per_rad,
+                torque_limit_n_m,
+                gravity_feedforward,
+            } => {
+                let dth = th1[p] - st.motor_rad[p];
+                let w1 = two_h * dth - st.motor_rate_rad_s[p];
+                let a1 =
+                    four_h2 * dth - 2.0 * two_h * st.motor_rate_rad_s[p] - st.motor_accel_rad_s2[p];
+                let raw = kp_n_m_per_rad * (st.motor_ref_rad[p] - th1[p])
+                    + kd_n_m_s_per_rad * (ref_rate[p] - w1)
+                    + if gravity_feedforward { ff[p] } else { 0.0 };
+                sc.raw[p] = raw;
+                let (tq, dservo) = if sc.sat[p] == 0 {
+                    (raw, kp_n_m_per_rad + two_h * kd_n_m_s_per_rad)
+                } else {
+                    (f64::from(sc.sat[p]) * torque_limit_n_m, 0.0)
+                };
+                torque[p] = tq;
+                let jm = s.motor.inertia_kg_m2;
+                let bm = s.motor.damping_n_m_s;
+                MotorRow::Servo {
+                    residual_n_m: jm * a1 + bm * w1 - tq,
+                    diag: four_h2 * jm + two_h * bm + dservo,
+                }
+            }
+        };
+        let inp = Local {
+            h,
+            n: pair.n,
+            motor_radius_m: s.motor_radius_m,
+            motor,
+            constant_force_n: (s.tensioner == TensionerKind::ConstantForce).then_some(s.preload_n),
+            theta_rad: th1[p],
+            q: &sc.q1,
+            state: &st.relays[p],
+        };
+        match sc.relay[p].as_mut() {
+            Some(rs) => relay::assemble(
+                c,
+                &pair.stepper,
+                rs,
+                &inp,
+                &mut x1[p],
+                &mut sc.kq,
+                &mut sc.rhs,
+                n,
+            ),
+            None => Assembly::Singular,
+        }
+    }
+
+    /// Applies the local update of pair `p` with relay friction; false while a change
+    /// is above the tolerance.
+    #[inline(never)]
+    fn friction_pair_update(
+        &self,
+        p: usize,
+        c: &CompiledRelays,
+        rs: &mut RelayScratch,
+        dq: &[f64],
+        th1: &mut [f64],
+        x1: &mut [f64],
+    ) -> bool {
+        let pair = &self.pairs[p];
+        let mut small = true;
+        relay::local_update(c, rs, dq);
+        if matches!(pair.spec.motor.mode, MotorMode::Servo { .. }) {
+            let d = rs.dz[c.iz_theta()];
+            th1[p] += d;
+            if d.abs() > 1e-12 * (1.0 + th1[p].abs()) {
+                small = false;
+            }
+        }
+        if pair.spec.tensioner == TensionerKind::ConstantForce {
+            let d = rs.dz[c.iz_x()];
+            x1[p] += d;
+            if d.abs() > 1e-15 * (1.0 + pair.spec.length_m) {
+                small = false;
+            }
+        }
+        small
     }
 
     fn make_scratch_light(&self) -> Scratch {
@@ -908,6 +1187,9 @@ impl DrivenArm {
             x1: vec![],
             torque: vec![],
             prep: vec![],
+            relay: vec![],
+            perm: vec![],
+            lu_tmp: vec![],
         }
     }
 }

@@ -19,7 +19,10 @@
 //! joint they pass) and the motor with `-r_m phi_p` (tendon duality: the same `R` maps
 //! joint velocities to rope velocities and rope forces to joint torques).
 
+use longreach_drive::RelayFriction;
 use longreach_rope::{RopeLaw, RopeParams, RopeStepper};
+
+use crate::relay::CompiledRelays;
 
 /// How the pre-tension of a pair is held.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -105,6 +108,10 @@ pub struct PairSpec {
     pub motor: MotorSpec,
     /// Names of the rope-law effects applied (from the drive effect registry).
     pub effects: Vec<String>,
+    /// Friction and inertia of the relay pulleys (`None`: ideal relays, one tension per
+    /// rope). With friction every rope is split into spans at its relays
+    /// ([`crate::relay`]).
+    pub relay_friction: Option<RelayFriction>,
 }
 
 impl PairSpec {
@@ -183,6 +190,8 @@ pub struct CompiledPair {
     pub inv_length: f64,
     /// Ropes in parallel as a float.
     pub n: f64,
+    /// Spans and relay pulleys when the pair has relay friction.
+    pub relays: Option<CompiledRelays>,
 }
 
 /// Joints between the base and `joint` (exclusive), base first.
@@ -266,6 +275,7 @@ pub fn uniform_pairs(
                 tensioner,
                 motor,
                 effects: vec![],
+                relay_friction: None,
             }
         })
         .collect()

@@ -51,6 +51,7 @@ fn compare(rope: &str, kind: LawKind, mean_tension_n: f64) {
             mode: MotorMode::Kinematic,
         },
         effects: vec![],
+        relay_friction: None,
     };
     let arm = DrivenArm::new(
         spec,

@@ -1,0 +1,830 @@
+//! Relay-pulley friction in the arm transmissions: every rope of a pair is split into
+//! spans at its relay pulleys, each span with its own rope state, and every relay
+//! pulley (one per rope side) turns relative to the link it is mounted on, with its
+//! inertia and the load-dependent bearing friction of [`RelayFriction`]
+//! (crates/drive/src/relay.rs).
+//!
+//! # Kinematics
+//!
+//! A pair with `m` relays (base first, at joints `k_0 .. k_{m-1}`, radii `r_l`, crossing
+//! signs `s_l`) has `m + 1` spans per rope side: span 0 from the motor pulley to relay 0,
+//! span `l + 1` from relay `l` to the next pulley, span `m` ending at the joint pulley.
+//! Each relay pulley sits on the proximal link of its joint (concentric with the
+//! joint axis), so a rotation `q_k` of the joint changes the wrap on the distal side
+//! of the pulley. The elongation of span `i` of rope side `sigma = +-1` is
+//!
+//! ```text
+//! e_i = o_i + [i = 0] (x + sigma r_m theta) - sigma G_i . q + [i >= 1] (-r_{i-1} psi_{i-1}) + [i < m] r_i psi_i
+//! ```
+//!
+//! with `G_{l+1}[k_l] = s_l r_l`, `G_m[j] += r_j` (rows of `G` sum to the routing row
+//! `R[p]`), `psi_l` the relay angle relative to its mount (positive when the rope moves
+//! towards the joint) and `o_i` constant offsets fixed at the initial state (every span
+//! of a rope at the same tension). The rope energy `V = n sum_i W(e_i)` gives the joint
+//! torques `n sum sigma f_i G_i`, the motor load `n r_m (f+_0 - f-_0)` and, per relay
+//! pulley, the law of `longreach_drive::relay`:
+//!
+//! ```text
+//! J psi_l'' + tau_f(psi_l', f_l + f_{l+1}) + r_l (f_l - f_{l+1}) = 0
+//! tau_f = coefficient r_l (f_l + f_{l+1}) tanh(psi_l' / slip_rate)
+//! ```
+//!
+//! With `coefficient = 0` and `inertia = 0` every span of a rope carries the same
+//! tension and the pair is the ideal pair of [`crate::transmission`]. The `n` ropes in
+//! parallel each run over their own relay pulleys (inertia counted `n` times).
+//!
+//! # Integration
+//!
+//! The relay angles join the motor angle and the tensioner stretch as the local
+//! unknowns `z = [theta, x, psi+_0.., psi-_0..]` of the pair in the implicit step
+//! (trapezoidal rule, exact-hold ropes per span). Friction makes the local block
+//! non-symmetric, so it is eliminated by a small LU (partial pivoting) and the
+//! `n x n` joint matrix of an arm with friction is solved by LU instead of Cholesky.
+
+use longreach_drive::RelayFriction;
+use longreach_rope::{PreparedStep, RopeState, RopeStepper};
+
+use crate::spec::ArmSpec;
+use crate::transmission::{proximal_joints, PairSpec};
+
+/// Relay friction of one pair compiled for the step.
+#[derive(Debug, Clone)]
+pub struct CompiledRelays {
+    /// The friction law of every relay pulley of the pair.
+    pub friction: RelayFriction,
+    /// Joint of each relay, base first.
+    pub joints: Vec<usize>,
+    /// Radius of each relay, m.
+    pub radius_m: Vec<f64>,
+    /// Length of each span (motor side first, `relays + 1`), m; sums to the rope length.
+    pub span_length_m: Vec<f64>,
+    /// `1 / span_length_m`.
+    pub inv_span_length: Vec<f64>,
+    /// Joints the span elongations depend on (sorted).
+    pub cols: Vec<usize>,
+    /// `G` (spans x cols), m: span `i` of rope `+` shortens by `G_i . q`.
+    pub geometry_m: Vec<f64>,
+}
+
+impl CompiledRelays {
+    /// Compiles the relays of `pair` on `spec`. Span lengths come from the URDF
+    /// geometry (`PairSpec::span_lengths_m` along the chain, cut at the relay joints)
+    /// scaled to `length_m`; when the route does not follow the chain (or a span would
+    /// have zero length) the rope is split into equal spans.
+    pub fn new(spec: &ArmSpec, pair: &PairSpec, friction: RelayFriction) -> Self {
+        let mut route = pair.route.clone();
+        route.sort_by_key(|r| r.joint);
+        let m = route.len();
+        let span_length_m = span_lengths(
+            spec,
+            pair,
+            &route.iter().map(|r| r.joint).collect::<Vec<_>>(),
+        );
+        let mut cols: Vec<usize> = route
+            .iter()
+            .map(|r| r.joint)
+            .chain(std::iter::once(pair.joint))
+            .collect();
+        cols.sort_unstable();
+        cols.dedup();
+        let nc = cols.len();
+        let col = |j: usize| cols.iter().position(|&c| c == j).unwrap_or(0);
+        let mut geometry_m = vec![0.0; (m + 1) * nc];
+        for (l, r) in route.iter().enumerate() {
+            geometry_m[(l + 1) * nc + col(r.joint)] += r.sign * r.radius_m;
+        }
+        geometry_m[m * nc + col(pair.joint)] += pair.joint_radius_m;
+        Self {
+            friction,
+            joints: route.iter().map(|r| r.joint).collect(),
+            radius_m: route.iter().map(|r| r.radius_m).collect(),
+            inv_span_length: span_length_m.iter().map(|l| 1.0 / l).collect(),
+            span_length_m,
+            cols,
+            geometry_m,
+        }
+    }
+
+    /// Relay pulleys per rope side.
+    pub fn relays(&self) -> usize {
+        self.radius_m.len()
+    }
+
+    /// Spans per rope side.
+    pub fn spans(&self) -> usize {
+        self.span_length_m.len()
+    }
+
+    /// Local unknowns of the pair in the step: motor, tensioner, relays of both sides.
+    pub fn unknowns(&self) -> usize {
+        2 + 2 * self.relays()
+    }
+
+    /// Index of the motor angle among the local unknowns. The order
+    /// `[psi+_{m-1} .. psi+_0, theta, x, psi-_0 .. psi-_{m-1}]` makes the local block
+    /// banded (two sub- and super-diagonals).
+    pub(crate) fn iz_theta(&self) -> usize {
+        self.relays()
+    }
+
+    /// Index of the tensioner stretch among the local unknowns.
+    pub(crate) fn iz_x(&self) -> usize {
+        self.relays() + 1
+    }
+
+    /// Index of relay `l` of rope `side` among the local unknowns.
+    pub(crate) fn iz_psi(&self, side: usize, l: usize) -> usize {
+        let m = self.relays();
+        if side == 0 {
+            m - 1 - l
+        } else {
+            m + 2 + l
+        }
+    }
+
+    /// `G_i . q` of span `i`, m.
+    fn gq(&self, i: usize, q: &[f64]) -> f64 {
+        let nc = self.cols.len();
+        self.cols
+            .iter()
+            .zip(&self.geometry_m[i * nc..(i + 1) * nc])
+            .map(|(&c, g)| g * q[c])
+            .sum()
+    }
+}
+
+/// Span lengths of the pair cut at `relay_joints` (sorted), scaled to `length_m`.
+fn span_lengths(spec: &ArmSpec, pair: &PairSpec, relay_joints: &[usize]) -> Vec<f64> {
+    let m = relay_joints.len();
+    let equal = vec![pair.length_m / (m + 1) as f64; m + 1];
+    let chain: Vec<usize> = proximal_joints(spec, pair.joint)
+        .into_iter()
+        .chain(std::iter::once(pair.joint))
+        .collect();
+    if pair.span_lengths_m.len() != chain.len() {
+        return equal;
+    }
+    // Distance of each chain joint from the motor pulley along the rope.
+    let mut pos = Vec::with_capacity(chain.len());
+    let mut acc = 0.0;
+    for s in &pair.span_lengths_m {
+        acc += s;
+        pos.push(acc);
+    }
+    let at = |j: usize| chain.iter().position(|&c| c == j).map(|i| pos[i]);
+    let mut cuts = Vec::with_capacity(m + 2);
+    cuts.push(0.0);
+    for &j in relay_joints {
+        match at(j) {
+            Some(p) => cuts.push(p),
+            None => return equal,
+        }
+    }
+    cuts.push(acc);
+    let spans: Vec<f64> = cuts.windows(2).map(|w| w[1] - w[0]).collect();
+    if acc <= 0.0 || spans.iter().any(|s| !(s.is_finite() && *s > 1e-9 * acc)) {
+        return equal;
+    }
+    let scale = pair.length_m / acc;
+    spans.iter().map(|s| s * scale).collect()
+}
+
+/// State of the spans and relay pulleys of one pair with relay friction (empty for a
+/// pair without).
+#[derive(Debug, Clone, Default)]
+pub struct RelayState {
+    /// Rope state `[+, -]` of every span, motor side first (one rope of the `n`).
+    pub spans: Vec<[RopeState; 2]>,
+    /// Angle of every relay pulley of the `[+, -]` rope relative to its mount, rad
+    /// (positive when the rope moves towards the joint).
+    pub angle_rad: Vec<[f64; 2]>,
+    /// Relay rates, rad/s.
+    pub rate_rad_s: Vec<[f64; 2]>,
+    /// Relay accelerations, rad/s^2.
+    pub accel_rad_s2: Vec<[f64; 2]>,
+    /// Constant elongation offsets `o_i` of every span, m.
+    pub offset_m: Vec<[f64; 2]>,
+}
+
+impl RelayState {
+    /// The state of a pair at rest at joint angles `q`, motor angle `theta_rad` and
+    /// tensioner stretch `x_m`, every span of rope `+` (`-`) at `tension_n[0]` (`[1]`).
+    pub fn at_rest(
+        c: &CompiledRelays,
+        stepper: &RopeStepper,
+        motor_radius_m: f64,
+        prestretch_n: f64,
+        tension_n: [f64; 2],
+        q: &[f64],
+        theta_rad: f64,
+        x_m: f64,
+    ) -> Self {
+        let m = c.relays();
+        let rest = [
+            stepper.rest_state(tension_n[0], prestretch_n),
+            stepper.rest_state(tension_n[1], prestretch_n),
+        ];
+        let mut offset_m = vec![[0.0; 2]; m + 1];
+        for (i, o) in offset_m.iter_mut().enumerate() {
+            for (side, sg) in [(0, 1.0), (1, -1.0)] {
+                let e = rest[side].strain * c.span_length_m[i];
+                let mut terms = -sg * c.gq(i, q);
+                if i == 0 {
+                    terms += x_m + sg * motor_radius_m * theta_rad;
+                }
+                o[side] = e - terms;
+            }
+        }
+        Self {
+            spans: vec![rest; m + 1],
+            angle_rad: vec![[0.0; 2]; m],
+            rate_rad_s: vec![[0.0; 2]; m],
+            accel_rad_s2: vec![[0.0; 2]; m],
+            offset_m,
+        }
+    }
+
+    /// Kinetic energy of the relay pulleys of one rope set, J (multiply by `n`).
+    pub fn kinetic_j(&self, c: &CompiledRelays) -> f64 {
+        self.rate_rad_s
+            .iter()
+            .flatten()
+            .map(|w| 0.5 * c.friction.inertia_kg_m2 * w * w)
+            .sum()
+    }
+}
+
+/// The motor row of the local block.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum MotorRow {
+    /// The motor angle is given.
+    Fixed,
+    /// Servo: residual without the rope load (N*m) and its derivative (N*m/rad).
+    Servo { residual_n_m: f64, diag: f64 },
+}
+
+/// Per-pair scratch of the step.
+#[derive(Debug, Clone)]
+pub(crate) struct RelayScratch {
+    /// Relay angles at the end of the step, `[psi+_0.., psi-_0..]`.
+    pub psi1: Vec<f64>,
+    /// Prepared rope steps, index `side * spans + i`.
+    pub prep: Vec<PreparedStep>,
+    f: Vec<f64>,
+    k: Vec<f64>,
+    kzz: Vec<f64>,
+    kzq: Vec<f64>,
+    kqz: Vec<f64>,
+    /// `K_zz^-1 K_zq`, column by column (cols x unknowns).
+    big_y: Vec<f64>,
+    /// `K_zz^-1 r_z`.
+    y: Vec<f64>,
+    perm: Vec<usize>,
+    tmp: Vec<f64>,
+    /// Newton update of the local unknowns.
+    pub dz: Vec<f64>,
+    /// Last Newton update (undamped) of each relay angle, rad.
+    prev_step: Vec<f64>,
+    /// Step factor of each relay angle (halved when its updates oscillate).
+    damping: Vec<f64>,
+}
+
+impl RelayScratch {
+    pub(crate) fn new(c: &CompiledRelays, prep0: PreparedStep) -> Self {
+        let (l, nc, s) = (c.unknowns(), c.cols.len(), 2 * c.spans());
+        Self {
+            psi1: vec![0.0; 2 * c.relays()],
+            prep: vec![prep0; s],
+            f: vec![0.0; s],
+            k: vec![0.0; s],
+            kzz: vec![0.0; l * l],
+            kzq: vec![0.0; l * nc],
+            kqz: vec![0.0; nc * l],
+            big_y: vec![0.0; l * nc],
+            y: vec![0.0; l],
+            perm: vec![0; l],
+            tmp: vec![0.0; l],
+            dz: vec![0.0; l],
+            prev_step: vec![0.0; 2 * c.relays()],
+            damping: vec![1.0; 2 * c.relays()],
+        }
+    }
+}
+
+/// What [`assemble`] found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Assembly {
+    /// Contributions added.
+    Done,
+    /// Both motor-side spans were slack under a constant-force tensioner: `x` was moved
+    /// to take up the slack; redo the iteration.
+    Retry,
+    /// The local block is singular.
+    Singular,
+}
+
+/// Inputs of one pair's local block at one Newton iteration.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Local<'a> {
+    pub h: f64,
+    pub n: f64,
+    pub motor_radius_m: f64,
+    pub motor: MotorRow,
+    /// `Some(preload)` for a constant-force tensioner.
+    pub constant_force_n: Option<f64>,
+    pub theta_rad: f64,
+    pub q: &'a [f64],
+    pub state: &'a RelayState,
+}
+
+/// Elongation of span `i` of side `side` at the trial state, m.
+fn elongation(
+    c: &CompiledRelays,
+    inp: &Local<'_>,
+    x_m: f64,
+    psi: &[f64],
+    side: usize,
+    i: usize,
+) -> f64 {
+    let m = c.relays();
+    let sg = if side == 0 { 1.0 } else { -1.0 };
+    let mut e = inp.state.offset_m[i][side] - sg * c.gq(i, inp.q);
+    if i == 0 {
+        e += x_m + sg * inp.motor_radius_m * inp.theta_rad;
+    }
+    if i >= 1 {
+        e -= c.radius_m[i - 1] * psi[side * m + i - 1];
+    }
+    if i < m {
+        e += c.radius_m[i] * psi[side * m + i];
+    }
+    e
+}
+
+/// Tensions of every span `[+, -]` (per rope) at joint angles `q`, motor angle
+/// `theta_rad`, stretch `x_m` and relay angles `psi` from the prepared steps.
+pub(crate) fn span_tension(
+    c: &CompiledRelays,
+    stepper: &RopeStepper,
+    inp: &Local<'_>,
+    x_m: f64,
+    psi: &[f64],
+    prep: &[PreparedStep],
+    side: usize,
+    i: usize,
+) -> (f64, f64, f64) {
+    let e = elongation(c, inp, x_m, psi, side, i);
+    let strain = e * c.inv_span_length[i];
+    let (f, k, _) = stepper.tension_piece(&prep[side * c.spans() + i], strain);
+    (f, k * c.inv_span_length[i], strain)
+}
+
+/// Adds the pair's contributions (Schur complement of its local unknowns) to the joint
+/// matrix `kq` (`nq x nq`, row-major) and right-hand side `rhs` (`-r_q`); `x_m` is
+/// moved when the carriage must take up slack.
+#[inline(never)]
+pub(crate) fn assemble(
+    c: &CompiledRelays,
+    stepper: &RopeStepper,
+    sc: &mut RelayScratch,
+    inp: &Local<'_>,
+    x_m: &mut f64,
+    kq: &mut [f64],
+    rhs: &mut [f64],
+    nq: usize,
+) -> Assembly {
+    let m = c.relays();
+    let ns = c.spans();
+    let l = c.unknowns();
+    let nc = c.cols.len();
+    let (h, n, rm) = (inp.h, inp.n, inp.motor_radius_m);
+    for side in 0..2 {
+        for i in 0..ns {
+            let (f, k, _) = span_tension(c, stepper, inp, *x_m, &sc.psi1, &sc.prep, side, i);
+            sc.f[side * ns + i] = f;
+            sc.k[side * ns + i] = k;
+        }
+    }
+    if inp.constant_force_n.is_some() && sc.k[0] + sc.k[ns] == 0.0 {
+        // Both motor-side spans slack: the carriage takes up the slack first.
+        let need = |side: usize| {
+            let e = elongation(c, inp, *x_m, &sc.psi1, side, 0) - *x_m;
+            sc.prep[side * ns].slack_strain() * c.span_length_m[0] - e
+        };
+        *x_m = need(0).min(need(1)) + 1e-12 * c.span_length_m.iter().sum::<f64>();
+        return Assembly::Retry;
+    }
+    sc.kzz.fill(0.0);
+    sc.kzq.fill(0.0);
+    sc.kqz.fill(0.0);
+    let rz = &mut sc.y;
+    rz.fill(0.0);
+    // Derivative of span (side, i) elongation with respect to the local unknowns:
+    // at most four entries.
+    let da = |side: usize, i: usize| -> ([(usize, f64); 4], usize) {
+        let sg = if side == 0 { 1.0 } else { -1.0 };
+        let mut out = [(0usize, 0.0f64); 4];
+        let mut len = 0;
+        if i == 0 {
+            out[0] = (c.iz_theta(), sg * rm);
+            out[1] = (c.iz_x(), 1.0);
+            len = 2;
+        }
+        if i >= 1 {
+            out[len] = (c.iz_psi(side, i - 1), -c.radius_m[i - 1]);
+            len += 1;
+        }
+        if i < m {
+            out[len] = (c.iz_psi(side, i), c.radius_m[i]);
+            len += 1;
+        }
+        (out, len)
+    };
+    // Adds `w * k_s * d e_s` to row `row` of the local block.
+    let add_row = |kzz: &mut [f64], kzq: &mut [f64], row: usize, w: f64, side: usize, i: usize| {
+        let ks = sc.k[side * ns + i];
+        if ks == 0.0 || w == 0.0 {
+            return;
+        }
+        let sg = if side == 0 { 1.0 } else { -1.0 };
+        let (d, len) = da(side, i);
+        for &(z, v) in &d[..len] {
+            kzz[row * l + z] += w * ks * v;
+        }
+        for cc in 0..nc {
+            kzq[row * nc + cc] -= w * ks * sg * c.geometry_m[i * nc + cc];
+        }
+    };
+    // Motor row.
+    let it = c.iz_theta();
+    match inp.motor {
+        MotorRow::Fixed => {
+            sc.kzz[it * l + it] = 1.0;
+        }
+        MotorRow::Servo { residual_n_m, diag } => {
+            rz[it] = residual_n_m + n * rm * (sc.f[0] - sc.f[ns]);
+            sc.kzz[it * l + it] += diag;
+            add_row(&mut sc.kzz, &mut sc.kzq, it, n * rm, 0, 0);
+            add_row(&mut sc.kzz, &mut sc.kzq, it, -n * rm, 1, 0);
+        }
+    }
+    // Tensioner row.
+    let ix = c.iz_x();
+    match inp.constant_force_n {
+        None => sc.kzz[ix * l + ix] = 1.0,
+        Some(t) => {
+            rz[ix] = sc.f[0] + sc.f[ns] - 2.0 * t;
+            add_row(&mut sc.kzz, &mut sc.kzq, ix, 1.0, 0, 0);
+            add_row(&mut sc.kzz, &mut sc.kzq, ix, 1.0, 1, 0);
+        }
+    }
+    // Relay rows.
+    let (two_h, four_h2) = (2.0 / h, 4.0 / (h * h));
+    let jr = c.friction.inertia_kg_m2;
+    for side in 0..2 {
+        for rl in 0..m {
+            let row = c.iz_psi(side, rl);
+            let r = c.radius_m[rl];
+            let (fa, fb) = (sc.f[side * ns + rl], sc.f[side * ns + rl + 1]);
+            let psi0 = inp.state.angle_rad[rl][side];
+            let w0 = inp.state.rate_rad_s[rl][side];
+            let a0 = inp.state.accel_rad_s2[rl][side];
+            let dpsi = sc.psi1[side * m + rl] - psi0;
+            let w1 = two_h * dpsi - w0;
+            let a1 = four_h2 * dpsi - 2.0 * two_h * w0 - a0;
+            let t = c.friction.torque_n_m(r, fa + fb, w1);
+            rz[row] = jr * a1 + t.torque_n_m + r * (fa - fb);
+            sc.kzz[row * l + row] += four_h2 * jr + two_h * t.d_rate_n_m_s;
+            add_row(
+                &mut sc.kzz,
+                &mut sc.kzq,
+                row,
+                r + t.d_tension_sum_m,
+                side,
+                rl,
+            );
+            add_row(
+                &mut sc.kzz,
+                &mut sc.kzq,
+                row,
+                -r + t.d_tension_sum_m,
+                side,
+                rl + 1,
+            );
+            if sc.kzz[row * l + row] == 0.0 {
+                // No inertia, no friction and both spans slack: the pulley stays put.
+                sc.kzz[row * l + row] = 1.0;
+                rz[row] = 0.0;
+            }
+        }
+    }
+    // Joint rows: rhs = -r_q gets the rope torques, kq the span stiffnesses.
+    for side in 0..2 {
+        let sg = if side == 0 { 1.0 } else { -1.0 };
+        for i in 0..ns {
+            let (f, ks) = (sc.f[side * ns + i], sc.k[side * ns + i]);
+            let g = &c.geometry_m[i * nc..(i + 1) * nc];
+            for (a, &ca) in c.cols.iter().enumerate() {
+                if g[a] == 0.0 {
+                    continue;
+                }
+                rhs[ca] += n * sg * f * g[a];
+                if ks == 0.0 {
+                    continue;
+                }
+                for (b, &cb) in c.cols.iter().enumerate() {
+                    kq[ca * nq + cb] += n * ks * g[a] * g[b];
+                }
+                let (d, len) = da(side, i);
+                for &(z, v) in &d[..len] {
+                    sc.kqz[a * l + z] -= n * ks * sg * g[a] * v;
+                }
+            }
+        }
+    }
+    if !lu_in_place_banded(&mut sc.kzz, l, LOCAL_BANDWIDTH, &mut sc.perm) {
+        return Assembly::Singular;
+    }
+    lu_solve_banded(
+        &sc.kzz,
+        l,
+        LOCAL_BANDWIDTH,
+        &sc.perm,
+        &mut sc.y,
+        &mut sc.tmp,
+    );
+    for cc in 0..nc {
+        let col = &mut sc.big_y[cc * l..(cc + 1) * l];
+        for z in 0..l {
+            col[z] = sc.kzq[z * nc + cc];
+        }
+        lu_solve_banded(&sc.kzz, l, LOCAL_BANDWIDTH, &sc.perm, col, &mut sc.tmp);
+    }
+    for (a, &ca) in c.cols.iter().enumerate() {
+        let kqz = &sc.kqz[a * l..(a + 1) * l];
+        rhs[ca] += kqz.iter().zip(&sc.y).map(|(u, v)| u * v).sum::<f64>();
+        for (b, &cb) in c.cols.iter().enumerate() {
+            let yb = &sc.big_y[b * l..(b + 1) * l];
+            let s: f64 = kqz.iter().zip(yb).map(|(u, v)| u * v).sum();
+            kq[ca * nq + cb] -= s;
+        }
+    }
+    Assembly::Done
+}
+
+/// The local update `dz = -K_zz^-1 (r_z + K_zq dq)` after the joint update `dq`.
+#[inline(never)]
+pub(crate) fn local_update(c: &CompiledRelays, sc: &mut RelayScratch, dq: &[f64]) {
+    let l = c.unknowns();
+    for z in 0..l {
+        let mut s = sc.y[z];
+        for (cc, &col) in c.cols.iter().enumerate() {
+            s += sc.big_y[cc * l + z] * dq[col];
+        }
+        sc.dz[z] = -s;
+    }
+}
+
+/// Newton iterations of a step after which oscillating relay updates are damped.
+pub(crate) const DAMP_AFTER_ITERATIONS: u32 = 16;
+
+/// Applies the local update `dz` to the relay angles; returns false while any change is
+/// above the tolerance. Two safeguards keep Newton from cycling on the non-smooth parts
+/// of the relay equation: a relay whose rate would jump across the stick band (from one
+/// sliding direction to the other, beyond the slip rate) is set to rest instead (Newton
+/// on the regularised Coulomb law overshoots from the sliding plateaus; from rest, inside
+/// the steep band, it converges monotonically); and a relay whose updates flip sign
+/// without shrinking (a span going slack and taut between iterates: a kink of the rope
+/// law on each side of the pulley) after [`DAMP_AFTER_ITERATIONS`] Newton iterations
+/// takes half steps from then on (bisection of the kink).
+#[inline(never)]
+pub(crate) fn apply_relay_update(
+    c: &CompiledRelays,
+    sc: &mut RelayScratch,
+    state: &RelayState,
+    h: f64,
+    iteration: u32,
+) -> bool {
+    let m = c.relays();
+    let slip = c.friction.slip_rate_rad_s;
+    let two_h = 2.0 / h;
+    let mut small = true;
+    for side in 0..2 {
+        for rl in 0..m {
+            let k = side * m + rl;
+            let (psi0, w0) = (state.angle_rad[rl][side], state.rate_rad_s[rl][side]);
+            let old = sc.psi1[k];
+            let raw = sc.dz[c.iz_psi(side, rl)];
+            if iteration > DAMP_AFTER_ITERATIONS
+                && raw * sc.prev_step[k] < 0.0
+                && raw.abs() > 0.9 * sc.prev_step[k].abs()
+            {
+                sc.damping[k] *= 0.5;
+            }
+            sc.prev_step[k] = raw;
+            let mut new = old + raw * sc.damping[k];
+            let w_old = two_h * (old - psi0) - w0;
+            let w_new = two_h * (new - psi0) - w0;
+            if c.friction.coefficient > 0.0 && w_old * w_new < 0.0 && w_new.abs() > slip {
+                new = psi0 + 0.5 * h * w0;
+            }
+            if (new - old).abs() > 1e-12 * (1.0 + new.abs()) {
+                small = false;
+            }
+            sc.psi1[k] = new;
+        }
+    }
+    small
+}
+
+/// Ends the step: commits every span at the converged state and advances the relay
+/// pulleys (trapezoidal rule).
+#[inline(never)]
+pub(crate) fn commit(
+    c: &CompiledRelays,
+    stepper: &RopeStepper,
+    sc: &mut RelayScratch,
+    h: f64,
+    motor_radius_m: f64,
+    theta_rad: f64,
+    x_m: f64,
+    q: &[f64],
+    state: &mut RelayState,
+) {
+    let ns = c.spans();
+    let m = c.relays();
+    {
+        let inp = Local {
+            h,
+            n: 1.0,
+            motor_radius_m,
+            motor: MotorRow::Fixed,
+            constant_force_n: None,
+            theta_rad,
+            q,
+            state: &*state,
+        };
+        for side in 0..2 {
+            for i in 0..ns {
+                let (f, _, strain) =
+                    span_tension(c, stepper, &inp, x_m, &sc.psi1, &sc.prep, side, i);
+                sc.f[side * ns + i] = f;
+                sc.k[side * ns + i] = strain;
+            }
+        }
+    }
+    for side in 0..2 {
+        for i in 0..ns {
+            let k = side * ns + i;
+            stepper.commit_with_tension(&sc.prep[k], &mut state.spans[i][side], sc.k[k], sc.f[k]);
+        }
+    }
+    let (two_h, four_h2) = (2.0 / h, 4.0 / (h * h));
+    for rl in 0..m {
+        for side in 0..2 {
+            let psi1 = sc.psi1[side * m + rl];
+            let dpsi = psi1 - state.angle_rad[rl][side];
+            let w0 = state.rate_rad_s[rl][side];
+            let a1 = four_h2 * dpsi - 2.0 * two_h * w0 - state.accel_rad_s2[rl][side];
+            state.rate_rad_s[rl][side] = two_h * dpsi - w0;
+            state.accel_rad_s2[rl][side] = a1;
+            state.angle_rad[rl][side] = psi1;
+        }
+    }
+}
+
+/// Prepares the step of every span and predicts the relay angles.
+#[inline(never)]
+pub(crate) fn begin_step(
+    c: &CompiledRelays,
+    stepper: &RopeStepper,
+    sc: &mut RelayScratch,
+    h: f64,
+    state: &RelayState,
+) {
+    let ns = c.spans();
+    let m = c.relays();
+    for (i, span) in state.spans.iter().enumerate() {
+        sc.prep[i] = stepper.prepare(&span[0]);
+        sc.prep[ns + i] = stepper.prepare(&span[1]);
+    }
+    sc.prev_step.fill(0.0);
+    sc.damping.fill(1.0);
+    for rl in 0..m {
+        for side in 0..2 {
+            sc.psi1[side * m + rl] = state.angle_rad[rl][side]
+                + h * state.rate_rad_s[rl][side]
+                + 0.5 * h * h * state.accel_rad_s2[rl][side];
+        }
+    }
+}
+
+/// Lower bandwidth of the local block in the order of [`CompiledRelays::iz_theta`].
+const LOCAL_BANDWIDTH: usize = 2;
+
+/// LU factorisation with partial pivoting of the row-major `n x n` matrix `a` in place
+/// (unit lower factor below the diagonal); false when singular or not finite.
+#[inline(never)]
+pub(crate) fn lu_in_place(a: &mut [f64], n: usize, perm: &mut [usize]) -> bool {
+    lu_in_place_banded(a, n, n.saturating_sub(1), perm)
+}
+
+/// Solves `A x = b` in place with the factor of [`lu_in_place`] (`tmp`: n scratch).
+#[inline(never)]
+pub(crate) fn lu_solve(a: &[f64], n: usize, perm: &[usize], b: &mut [f64], tmp: &mut [f64]) {
+    lu_solve_banded(a, n, n.saturating_sub(1), perm, b, tmp);
+}
+
+/// [`lu_in_place`] for a matrix with `p` sub- and `p` super-diagonals (dense storage),
+/// LAPACK `gbtrf` style: the pivot of column `k` is searched in rows `k..=k+p`, the row
+/// interchange is applied to columns `k..` only (`perm[k]` records the row), so `L`
+/// keeps `p` sub-diagonals and `U` gets at most `2 p` super-diagonals. With `p = n - 1`
+/// it is plain LU with partial pivoting.
+pub(crate) fn lu_in_place_banded(a: &mut [f64], n: usize, p: usize, perm: &mut [usize]) -> bool {
+    for k in 0..n {
+        let last_row = (k + p).min(n - 1);
+        let last_col = (k + 2 * p).min(n - 1);
+        let mut piv = k;
+        let mut best = a[k * n + k].abs();
+        for i in k + 1..=last_row {
+            let v = a[i * n + k].abs();
+            if v > best {
+                best = v;
+                piv = i;
+            }
+        }
+        if best <= 0.0 || !best.is_finite() {
+            return false;
+        }
+        perm[k] = piv;
+        if piv != k {
+            for j in k..=last_col {
+                a.swap(k * n + j, piv * n + j);
+            }
+        }
+        let d = a[k * n + k];
+        for i in k + 1..=last_row {
+            let f = a[i * n + k] / d;
+            a[i * n + k] = f;
+            if f != 0.0 {
+                let (top, bottom) = a.split_at_mut(i * n);
+                let pivot_row = &top[k * n + k + 1..k * n + last_col + 1];
+                for (x, u) in bottom[k + 1..last_col + 1].iter_mut().zip(pivot_row) {
+                    *x -= f * u;
+                }
+            }
+        }
+    }
+    true
+}
+
+/// Solves `A x = b` in place with the factor of [`lu_in_place_banded`] (same `p`).
+pub(crate) fn lu_solve_banded(
+    a: &[f64],
+    n: usize,
+    p: usize,
+    perm: &[usize],
+    b: &mut [f64],
+    _tmp: &mut [f64],
+) {
+    for k in 0..n {
+        b.swap(k, perm[k]);
+        let bk = b[k];
+        if bk != 0.0 {
+            for i in k + 1..=(k + p).min(n - 1) {
+                b[i] -= a[i * n + k] * bk;
+            }
+        }
+    }
+    for i in (0..n).rev() {
+        let hi = (i + 2 * p).min(n - 1);
+        let row = &a[i * n + i + 1..i * n + hi + 1];
+        let s: f64 = row.iter().zip(&b[i + 1..hi + 1]).map(|(u, x)| u * x).sum();
+        b[i] = (b[i] - s) / a[i * n + i];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lu_solves_a_non_symmetric_system_that_needs_pivoting() {
+        // [0 2 1; 1 1 0; 3 0 1] x = b for x = [1, -2, 3].
+        let a0 = [0.0, 2.0, 1.0, 1.0, 1.0, 0.0, 3.0, 0.0, 1.0];
+        let x = [1.0, -2.0, 3.0];
+        let mut b: Vec<f64> = (0..3)
+            .map(|i| (0..3).map(|j| a0[i * 3 + j] * x[j]).sum())
+            .collect();
+        let mut a = a0;
+        let mut perm = [0; 3];
+        let mut tmp = [0.0; 3];
+        assert!(lu_in_place(&mut a, 3, &mut perm));
+        lu_solve(&a, 3, &perm, &mut b, &mut tmp);
+        for i in 0..3 {
+            assert!((b[i] - x[i]).abs() < 1e-14, "{b:?}");
+        }
+        let mut singular = [1.0, 2.0, 2.0, 4.0];
+        assert!(!lu_in_place(&mut singular, 2, &mut [0; 2]));
+    }
+}

@@ -1,0 +1,313 @@
+//! Relay-pulley friction in the arm transmissions (ropes split into spans at their
+//! relays, relay pulleys with inertia and load-dependent friction).
+
+mod common;
+
+use std::path::Path;
+
+use common::robot_path;
+use longreach_arm::scenario::parse;
+use longreach_arm::transmission::{uniform_pairs, MotorMode, MotorSpec, TensionerKind};
+use longreach_arm::{load_urdf, Command, DrivenArm, DrivenState};
+use longreach_drive::RelayFriction;
+use longreach_rope::{Catalog, LawKind, RopeLaw};
+
+fn scenarios() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenarios")
+}
+
+/// longreach5 with one rope for every joint; `extra` goes into [transmission_defaults],
+/// `motor` is the motor table of every pair, `j5_command` the command of j5.
+fn longreach5(
+    rope: &str,
+    law: &str,
+    gravity: bool,
+    extra: &str,
+    motor: &str,
+    j5_command: &str,
+) -> String {
+    let radii = [0.2, 0.16, 0.12, 0.1, 0.08];
+    let parallel = [7, 6, 5, 3, 2];
+    let preload = [640.0, 600.0, 570.0, 590.0, 530.0];
+    let mut t = format!(
+        "[arm]\nurdf = \"../robots/longreach5/longreach5.urdf\"\ntip_frame = \"tip\"\ngravity = {gravity}\n\
+         [sim]\ndt_s = 0.001\nduration_s = 2.0\n\
+         [transmission_defaults]\nrope = \"{rope}\"\nlaw = \"{law}\"\n{extra}\n"
+    );
+    for j in 0..5 {
+        t.push_str(&format!(
+            "[[transmission]]\njoint = \"j{}\"\njoint_radius_m = {}\nropes_in_parallel = {}\npreload_n = {}\nmotor = {motor}\n",
+            j + 1,
+            radii[j],
+            parallel[j],
+            preload[j]
+        ));
+        if j == 4 {
+            t.push_str(&format!("command = {j5_command}\n"));
+        }
+    }
+    t
+}
+
+const SERVO: &str = "{ mode = \"servo\", inertia_kg_m2 = 0.05, damping_n_m_s = 1.0, kp_n_m_per_rad = 96.0, kd_n_m_s_per_rad = 62.0 }";
+
+#[test]
+fn zero_friction_and_inertia_give_the_ideal_relay_results() {
+    // Four-element ropes, servos, gravity, a step of j5: every span must carry the
+    // tension of the ideal rope, with fixed and with constant-force tensioners.
+    for tensioner in ["fixed", "constant_force"] {
+        zero_friction_case(&format!("tensioner = \"{tensioner}\"\n"));
+    }
+}
+
+fn zero_friction_case(tensioner: &str) {
+    let step = "{ kind = \"step\", to_rad = 0.1, at_s = 0.1 }";
+    let ideal = longreach5("dyneema2", "four_element", true, tensioner, SERVO, step);
+    let zero = longreach5(
+        "dyneema2",
+        "four_element",
+        true,
+        &format!("{tensioner}relay_friction = {{ coefficient = 0.0, inertia_kg_m2 = 1e-12 }}"),
+        SERVO,
+        step,
+    );
+    let a = parse(&ideal, "ideal", &scenarios()).unwrap().arm;
+    let b = parse(&zero, "zero", &scenarios()).unwrap().arm;
+    // j5's ropes: motor offset 0.5 m, then joint to joint along the URDF (2.6, 2.4, 2.2,
+    // 2.0 m), cut at the relays of j1..j4; the span geometry adds up to the routing row.
+    let r5 = b.pairs[4].relays.as_ref().unwrap();
+    for (got, want) in r5.span_length_m.iter().zip([0.5, 2.6, 2.4, 2.2, 2.0]) {
+        assert!((got - want).abs() < 1e-12, "{:?}", r5.span_length_m);
+    }
+    assert_eq!(r5.spans(), 5);
+    let nc = r5.cols.len();
+    for (a_col, &joint) in r5.cols.iter().enumerate() {
+        let sum: f64 = (0..r5.spans()).map(|i| r5.geometry_m[i * nc + a_col]).sum();
+        assert!((sum - b.pairs[4].row[joint]).abs() < 1e-15);
+    }
+    let (mut sa, mut sb) = (a.initial_state(), b.initial_state());
+    let mut worst_q = 0.0f64;
+    let mut worst_f = 0.0f64;
+    for _ in 0..600 {
+        a.step(&mut sa).unwrap();
+        b.step(&mut sb).unwrap();
+        for j in 0..5 {
+            worst_q = worst_q.max((sa.q_rad[j] - sb.q_rad[j]).abs());
+            worst_q = worst_q.max((sa.motor_rad[j] - sb.motor_rad[j]).abs());
+        }
+        for p in 0..5 {
+            for span in b.span_tensions_n(&sb, p) {
+                for side in 0..2 {
+                    let fa = sa.ropes[p][side].tension_n;
+                    worst_f = worst_f.max((span[side] - fa).abs() / fa.max(1.0));
+                }
+            }
+        }
+    }
+    println!("{tensioner}largest difference: {worst_q:.3e} rad, {worst_f:.3e} of the tension");
+    assert!(worst_q < 1e-9, "{worst_q}");
+    assert!(worst_f < 1e-9, "{worst_f}");
+    // The move happened (the comparison is not of two resting arms).
+    assert!(sa.q_rad[4] > 0.02, "{}", sa.q_rad[4]);
+}
+
+#[test]
+fn slowly_moved_joint_gives_the_sliding_tension_ratio_across_every_relay() {
+    // No gravity, four-element ropes (their damping calms the start of the move),
+    // motors following their references exactly; j5 turns at 0.1 rad/s: its ropes slide
+    // over the four relays at 0.04-0.1 rad/s (>> the 1 mrad/s slip rate). Steady
+    // sliding: T_in / T_out = (1 + c) / (1 - c) per relay.
+    let c = 0.02;
+    let text = longreach5(
+        "dyneema2",
+        "four_element",
+        false,
+        &format!("relay_friction = {{ coefficient = {c}, inertia_kg_m2 = 1e-5 }}"),
+        "{ mode = \"kinematic\" }",
+        "{ kind = \"trapezoid\", to_rad = 0.3, start_s = 0.0, max_velocity_rad_s = 0.1, max_accel_rad_s2 = 0.2 }",
+    );
+    let arm = parse(&text, "slide", &scenarios()).unwrap().arm;
+    let mut st = arm.initial_state();
+    // Cruise from 0.5 s to 3.0 s: average the ratios over 1.0-2.9 s (the spans and
+    // relays ring a little around the steady state after the acceleration).
+    let (mut sum, mut count) = (vec![[0.0f64; 2]; 4], 0.0);
+    let mut spans = Vec::new();
+    for i in 0..2900 {
+        arm.step(&mut st).unwrap();
+        if i >= 1000 {
+            spans = arm.span_tensions_n(&st, 4);
+            for (l, w) in spans.windows(2).enumerate() {
+                // Rope +: wound in by the motor, it slides towards the motor: the
+                // proximal span pulls harder. Rope -: paid out, it slides towards the joint.
+                sum[l][0] += w[0][0] / w[1][0];
+                sum[l][1] += w[1][1] / w[0][1];
+            }
+            count += 1.0;
+        }
+    }
+    let ratio = (1.0 + c) / (1.0 - c);
+    assert_eq!(spans.len(), 5);
+    let mut worst = 0.0f64;
+    for s in &sum {
+        let (plus, minus) = (s[0] / count, s[1] / count);
+        println!("mean ratios {plus:.6} {minus:.6} (closed form {ratio:.6})");
+        worst = worst
+            .max((plus / ratio - 1.0).abs())
+            .max((minus / ratio - 1.0).abs());
+    }
+    println!(
+        "worst {:.2}% of the friction's share",
+        100.0 * worst / (ratio - 1.0)
+    );
+    // Within 1% of the friction's share of the ratio (measured 0.07%).
+    assert!(worst < 0.01 * (ratio - 1.0), "{worst}");
+    // Four relays: the motor-side span pulls ratio^4 = 1.17 times the joint-side one.
+    assert!(spans[0][0] > 1.15 * spans[4][0]);
+}
+
+fn arm5_friction(friction: Option<RelayFriction>) -> DrivenArm {
+    let spec = load_urdf(robot_path("arm5/arm5.urdf")).unwrap();
+    let params = Catalog::builtin().get("stainless1").unwrap().clone();
+    let law = RopeLaw::from_params(&params, LawKind::Elastic).unwrap();
+    let motor = MotorSpec {
+        inertia_kg_m2: 0.0,
+        damping_n_m_s: 0.0,
+        mode: MotorMode::Kinematic,
+    };
+    let mut pairs = uniform_pairs(
+        &spec,
+        "stainless1",
+        &params,
+        &law,
+        0.025,
+        20000.0,
+        TensionerKind::Fixed,
+        motor,
+        0.5,
+    );
+    for p in &mut pairs {
+        p.relay_friction = friction;
+    }
+    let mut arm = DrivenArm::new(spec, pairs, vec![Command::Hold; 5], vec![0.0; 5], 1e-3).unwrap();
+    arm.set_joint_damping(0.0);
+    arm
+}
+
+/// Total energy after every step of a 3 s free swing from a kick.
+fn swing(arm: &DrivenArm) -> Vec<f64> {
+    let mut st: DrivenState = arm.initial_state();
+    st.qd_rad_s = vec![0.3, -0.2, 0.4, -0.5, 0.6];
+    let mut e = vec![arm.energy(&st).total_j()];
+    for _ in 0..3000 {
+        arm.step(&mut st).unwrap();
+        e.push(arm.energy(&st).total_j());
+    }
+    e
+}
+
+#[test]
+fn energy_never_increases_with_relay_friction_and_falls_faster_than_without() {
+    // Elastic ropes, no joint damping, motors held: the only losses are the relays'. The
+    // anchor's 20 kN preload keeps every span taut through the swing.
+    let free = swing(&arm5_friction(None));
+    let rough = swing(&arm5_friction(Some(RelayFriction {
+        coefficient: 0.02,
+        inertia_kg_m2: 1e-5,
+        slip_rate_rad_s: RelayFriction::DEFAULT_SLIP_RATE_RAD_S,
+    })));
+    let rise = |e: &[f64]| e.windows(2).map(|w| w[1] - w[0]).fold(0.0f64, f64::max);
+    let e0 = free[0];
+    let (loss_free, loss_rough) = (e0 - free[free.len() - 1], rough[0] - rough[rough.len() - 1]);
+    println!(
+        "E0 {e0:.4} J; after 3 s: lost {loss_free:.3e} J without friction, {loss_rough:.3e} J with; \
+         largest rise in one step {:.3e} J without, {:.3e} J with",
+        rise(&free),
+        rise(&rough)
+    );
+    assert!((rough[0] - e0).abs() < 1e-9 * e0);
+    // Never increases beyond the integrator's own round-off/O(h^2) wobble of the
+    // conservative system.
+    assert!(
+        rise(&rough) <= rise(&free).max(1e-9 * e0),
+        "{}",
+        rise(&rough)
+    );
+    for (r, f) in rough.iter().zip(&free) {
+        assert!(*r <= f + 1e-9 * e0);
+    }
+    // Falls faster: friction takes a visible part of the kick.
+    assert!(
+        loss_rough > 1000.0 * loss_free.abs(),
+        "{loss_rough} vs {loss_free}"
+    );
+}
+
+#[test]
+fn bad_relay_friction_names_file_line_and_field() {
+    let step = "{ kind = \"hold\" }";
+    let text = longreach5(
+        "dyneema2",
+        "four_element",
+        true,
+        "relay_friction = { coefficient = 1.5, inertia_kg_m2 = 1e-4 }",
+        SERVO,
+        step,
+    );
+    let e = parse(&text, "bad.toml", &scenarios()).unwrap_err();
+    let msg = e.to_string();
+    println!("{msg}");
+    assert!(msg.contains("bad.toml"), "{msg}");
+    assert_eq!(e.field, "transmission_defaults.relay_friction.coefficient");
+    let line = text
+        .lines()
+        .position(|l| l.starts_with("relay_friction"))
+        .unwrap()
+        + 1;
+    assert_eq!(e.line, Some(line), "{msg}");
+    assert!(msg.contains("< 1"), "{msg}");
+    // In a transmission of its own, negative inertia.
+    let text = longreach5("dyneema2", "four_element", true, "", SERVO, step).replacen(
+        "joint = \"j3\"",
+        "joint = \"j3\"\nrelay_friction = { coefficient = 0.01, inertia_kg_m2 = -1.0 }",
+        1,
+    );
+    let e = parse(&text, "bad.toml", &scenarios()).unwrap_err();
+    assert_eq!(
+        e.field, "transmission.2.relay_friction.inertia_kg_m2",
+        "{e}"
+    );
+    let line = text
+        .lines()
+        .position(|l| l.starts_with("relay_friction"))
+        .unwrap()
+        + 1;
+    assert_eq!(e.line, Some(line), "{e}");
+    // Unknown keys and the registry form are refused with the fix.
+    let text = longreach5(
+        "dyneema2",
+        "four_element",
+        true,
+        "relay_friction = { coefficient = 0.01, inertia = 1e-4 }",
+        SERVO,
+        step,
+    );
+    let msg = parse(&text, "bad.toml", &scenarios())
+        .unwrap_err()
+        .to_string();
+    assert!(msg.contains("inertia"), "{msg}");
+    // The registry form: parameters by the registry's names, its bounds enforced.
+    let text = longreach5(
+        "dyneema2",
+        "four_element",
+        true,
+        "effects = [{ name = \"relay_friction\", params = [0.02, 1e-4] }]",
+        SERVO,
+        step,
+    );
+    let arm = parse(&text, "ok.toml", &scenarios()).unwrap().arm;
+    let rf = arm.pairs[2].spec.relay_friction.unwrap();
+    assert!((rf.coefficient - 0.02).abs() < 1e-15 && (rf.inertia_kg_m2 - 1e-4).abs() < 1e-18);
+    let text = text.replace("params = [0.02, 1e-4]", "params = [0.5, 1e-4]");
+    let e = parse(&text, "bad.toml", &scenarios()).unwrap_err();
+    assert_eq!(e.field, "transmission.0.effects.0", "{e}");
+}
