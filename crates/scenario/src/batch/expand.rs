@@ -156,6 +156,35 @@ fn line_of_key(text: &str, table_path: &str, key: &str) -> Option<usize> {
 }
 
 /// 64-bit FNV-1a, as 16 hex digits.
+/// Fingerprint of a batch for `--resume`: the batch text, the base text and the
+/// contents of every file the base names (a string value that is an existing file
+/// relative to the base's folder: URDF, CSV commands...), so that editing a
+/// referenced file makes an old journal stale.
+fn fingerprint(text: &str, base_text: &str, base: &Table, base_dir: &Path) -> String {
+    fn files(v: &Value, dir: &Path, out: &mut Vec<PathBuf>) {
+        match v {
+            Value::String(s) => {
+                let p = dir.join(s);
+                if !s.is_empty() && p.is_file() {
+                    out.push(p);
+                }
+            }
+            Value::Array(a) => a.iter().for_each(|x| files(x, dir, out)),
+            Value::Table(t) => t.values().for_each(|x| files(x, dir, out)),
+            _ => {}
+        }
+    }
+    let mut paths = Vec::new();
+    base.values().for_each(|v| files(v, base_dir, &mut paths));
+    let contents: Vec<String> = paths
+        .iter()
+        .map(|p| String::from_utf8_lossy(&std::fs::read(p).unwrap_or_default()).into_owned())
+        .collect();
+    let mut parts = vec![text, base_text];
+    parts.extend(contents.iter().map(String::as_str));
+    fnv1a(&parts)
+}
+
 fn fnv1a(parts: &[&str]) -> String {
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
     for part in parts {
@@ -584,12 +613,13 @@ impl Batch {
                 "use letters, digits, `_` and `-`".into(),
             ));
         }
+        let fingerprint = fingerprint(text, &base_text, &base, &base_dir);
         Ok(Self {
             name,
             file: file.to_string(),
             kind,
             base_dir,
-            fingerprint: fnv1a(&[text, &base_text]),
+            fingerprint,
             base,
             columns,
             dims,
@@ -688,6 +718,41 @@ mod tests {
         assert!((s.rigs[0].mean_tension_n - 49.0).abs() < 1e-15);
         assert!((s.rigs[0].output_inertia_kg_m2 - 2.0).abs() < 1e-15);
         assert_eq!(s.rigs[0].rope_name, "zylon2");
+    }
+
+    #[test]
+    fn the_fingerprint_follows_the_files_the_base_names() {
+        let dir = tempfile::tempdir().unwrap();
+        let scen = std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenarios/bode_dyneema2.toml"),
+        )
+        .unwrap();
+        // A base naming a side file (as an arm scenario names its URDF).
+        std::fs::write(dir.path().join("side.txt"), "one").unwrap();
+        std::fs::write(
+            dir.path().join("base.toml"),
+            scen.replacen(
+                "title = \"Paper rig, dyneema2\"",
+                "title = \"side.txt\"",
+                1,
+            ),
+        )
+        .unwrap();
+        let text = "base = \"base.toml\"\n";
+        let kinds = super::super::builtin_kinds();
+        let fp = || {
+            Batch::from_str(text, "t.toml", "t", dir.path(), &kinds)
+                .unwrap()
+                .fingerprint
+        };
+        let first = fp();
+        assert_eq!(first, fp(), "deterministic");
+        std::fs::write(dir.path().join("side.txt"), "two").unwrap();
+        assert_ne!(
+            first,
+            fp(),
+            "editing a referenced file changes the fingerprint"
+        );
     }
 
     #[test]
