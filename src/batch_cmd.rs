@@ -54,6 +54,13 @@ pub struct BatchArgs {
     /// List the expanded scenarios (index and axis values, as CSV) without running.
     #[arg(long)]
     pub dry_run: bool,
+    /// Record these scenarios (indices, comma-separated) to Rerun, each into
+    /// <out>/rerun/<index>.rrd, as `run` or `bode` would.
+    #[arg(long, value_name = "I,J,...", value_delimiter = ',')]
+    pub rerun_select: Vec<usize>,
+    /// Frames of simulated time logged per simulated second (with --rerun-select).
+    #[arg(long, value_name = "HZ", default_value_t = longreach_viz::DEFAULT_HZ)]
+    pub rerun_hz: f64,
 }
 
 /// Arguments of `longreach merge`.
@@ -159,6 +166,12 @@ pub fn run(args: &BatchArgs) -> Result<ExitCode> {
     let mine: Vec<usize> = (0..batch.len())
         .filter(|&i| shard.is_none_or(|s| s.contains(i)))
         .collect();
+    if let Some(&bad) = args.rerun_select.iter().find(|&&i| i >= batch.len()) {
+        bail!(
+            "--rerun-select {bad}: the batch has scenarios 0..{} (list them with --dry-run)",
+            batch.len().saturating_sub(1)
+        );
+    }
     if args.dry_run {
         return dry_run(&batch, shard, &mine);
     }
@@ -224,7 +237,61 @@ pub fn run(args: &BatchArgs) -> Result<ExitCode> {
     bar.finish_and_clear();
     journal.sync()?;
     result?;
-    write_tables(&dir, &header.axes, &rows)
+    let code = write_tables(&dir, &header.axes, &rows)?;
+    let selected: Vec<usize> = args
+        .rerun_select
+        .iter()
+        .copied()
+        .filter(|&i| shard.is_none_or(|s| s.contains(i)))
+        .collect();
+    if !selected.is_empty() {
+        record_selected(&batch, &selected, &dir.join("rerun"), args.rerun_hz)?;
+    }
+    Ok(code)
+}
+
+/// Runs the `selected` scenarios again with a Rerun recorder into `dir/<index>.rrd`
+/// (the same inputs give the same results, so the recording shows the row's run).
+fn record_selected(batch: &Batch, selected: &[usize], dir: &Path, hz: f64) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    for &i in selected {
+        let s = batch.scenario(i);
+        let label = format!("{} scenario {i}", batch.file);
+        let target = longreach_viz::Target::Save(Some(dir.join(format!("{i}.rrd"))));
+        let rec = longreach_viz::Recorder::start(&label, &target, dir, hz)?;
+        let result: Result<()> = match batch.kind.name() {
+            "arm" => {
+                let sc = longreach_arm::scenario::parse(&s.text, &label, &batch.base_dir)
+                    .map_err(|e| anyhow!("{e}"))?;
+                let mut viewer = longreach_viz::arm::ArmLogger::new(&rec, &sc.arm);
+                let r = longreach_arm::run::run_observed(
+                    &sc.arm,
+                    sc.sim.duration_s,
+                    sc.sim.output_every,
+                    sc.sim.residual_window_s,
+                    &mut |_, _| {},
+                    &mut |st| viewer.observe(st),
+                );
+                viewer.finish();
+                r.map(|_| ()).map_err(|e| anyhow!("{label}: {e}"))
+            }
+            "bode" => {
+                let sc = longreach_scenario::BodeScenario::from_str(&s.text, &label)
+                    .map_err(|e| anyhow!("{e}"))?;
+                crate::bode::simulate(&sc, &rec)
+                    .map(|_| ())
+                    .map_err(|e| anyhow!("{label}: {e}"))
+            }
+            other => Err(anyhow!(
+                "--rerun-select: scenarios of kind `{other}` cannot be recorded yet"
+            )),
+        };
+        crate::rerun_args::finish(rec);
+        if let Err(e) = result {
+            eprintln!("{e:#}");
+        }
+    }
+    Ok(())
 }
 
 fn dry_run(batch: &Batch, shard: Option<Shard>, mine: &[usize]) -> Result<ExitCode> {

@@ -14,6 +14,7 @@ use longreach_plot::{bode_figure, write_png, BodeCurve, Style};
 use longreach_scenario::{BodeRun, BodeScenario};
 
 use crate::output::{write_atomic, write_atomic_with};
+use crate::rerun_args::{self, RerunArgs};
 
 /// Arguments of `longreach bode`.
 #[derive(Debug, Args)]
@@ -32,6 +33,8 @@ pub struct BodeArgs {
     /// Print only the summary (resonances), not every frequency.
     #[arg(long)]
     pub quiet: bool,
+    #[command(flatten)]
+    pub rerun: RerunArgs,
 }
 
 #[derive(Serialize)]
@@ -65,11 +68,14 @@ fn fmt_opt(v: Option<f64>, digits: usize) -> String {
 /// Runs the scenario and writes what was asked.
 pub fn run(args: &BodeArgs) -> Result<ExitCode> {
     let scenario = BodeScenario::from_file(&args.scenario)?;
-    let runs: Vec<BodeRun> = (0..scenario.rigs.len())
-        .into_par_iter()
-        .map(|i| scenario.run_one(i))
-        .collect::<Result<_, _>>()
-        .with_context(|| format!("simulating {}", args.scenario.display()))?;
+    let rec = args.rerun.recorder(
+        &args.scenario.display().to_string(),
+        &rerun_args::default_rrd(None, &args.scenario, ""),
+    )?;
+    let runs = simulate(&scenario, &rec)
+        .with_context(|| format!("simulating {}", args.scenario.display()));
+    rerun_args::finish(rec);
+    let runs = runs?;
     let rig = &scenario.rigs[0];
     let law = if rig.law.c2_n_s.is_some() {
         if rig.law.kp_n.is_some() {
@@ -244,4 +250,33 @@ pub fn run(args: &BodeArgs) -> Result<ExitCode> {
         println!("wrote {}", path.display());
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Simulates every mean tension of `scenario` in parallel and, when `rec` records,
+/// logs the runs (each trace kept only at the logging rate).
+pub fn simulate(
+    scenario: &BodeScenario,
+    rec: &longreach_viz::Recorder,
+) -> Result<Vec<BodeRun>, longreach_drive::DriveError> {
+    let hz = rec.is_enabled().then(|| rec.hz());
+    let traced: Vec<(BodeRun, Option<longreach_drive::RigTrace>)> = (0..scenario.rigs.len())
+        .into_par_iter()
+        .map(|i| match hz {
+            Some(hz) => scenario
+                .run_one_traced(i)
+                .map(|(r, t)| (r, Some(longreach_viz::rig::decimate(&t, hz)))),
+            None => scenario.run_one(i).map(|r| (r, None)),
+        })
+        .collect::<Result<_, _>>()?;
+    if rec.is_enabled() {
+        let logged: Vec<_> = traced
+            .iter()
+            .filter_map(|(r, t)| {
+                t.as_ref()
+                    .map(|t| (r.mean_tension_n, t, r.points.as_slice()))
+            })
+            .collect();
+        longreach_viz::rig::log_bode(rec, &scenario.rigs[0], &logged);
+    }
+    Ok(traced.into_iter().map(|(r, _)| r).collect())
 }

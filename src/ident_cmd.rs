@@ -15,6 +15,7 @@ use longreach_ident::{synth, Dataset};
 use longreach_plot::{write_png, BodeCurve, Figure, Panel, Series, Style};
 
 use crate::output::{write_atomic, write_atomic_with};
+use crate::rerun_args::{self, RerunArgs};
 
 /// Arguments shared by fit, compare and diagnose.
 #[derive(Debug, Args)]
@@ -44,6 +45,8 @@ pub struct CompareArgs {
     /// Write pictures and report.md into this folder.
     #[arg(long)]
     report: Option<PathBuf>,
+    #[command(flatten)]
+    rerun: RerunArgs,
 }
 
 /// `longreach diagnose`.
@@ -57,6 +60,8 @@ pub struct DiagnoseArgs {
     /// Write the baseline plus the winning effect, fitted, as a model file.
     #[arg(long)]
     write_model: Option<PathBuf>,
+    #[command(flatten)]
+    rerun: RerunArgs,
 }
 
 /// Kind of synthetic dataset.
@@ -245,9 +250,15 @@ fn print_comparison(c: &Comparison) {
 /// Runs `compare`: simulates the model at its values (no fitting).
 pub fn run_compare(a: &CompareArgs) -> Result<ExitCode> {
     let (ds, model) = load(&a.data)?;
+    let rec = a.rerun.recorder(
+        &format!("compare {}", a.data.dataset.display()),
+        &rerun_args::default_rrd(None, &a.data.dataset, "_compare"),
+    )?;
     let prep = Prepared::new(&ds).map_err(|e| anyhow!(e))?;
     let sims = prep.simulate(&model).map_err(|e| anyhow!(e))?;
     let c = analysis::compare(&prep, &model, &sims).map_err(|e| anyhow!(e))?;
+    longreach_viz::ident::log_comparison(&rec, &prep, &c, &sims, None, None);
+    rerun_args::finish(rec);
     print_comparison(&c);
     if let Some(p) = &a.data.json {
         write_json(p, &c)?;
@@ -261,8 +272,15 @@ pub fn run_compare(a: &CompareArgs) -> Result<ExitCode> {
 /// Runs `diagnose`.
 pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
     let (ds, model) = load(&a.data)?;
+    let rec = a.rerun.recorder(
+        &format!("diagnose {}", a.data.dataset.display()),
+        &rerun_args::default_rrd(None, &a.data.dataset, "_diagnose"),
+    )?;
     let prep = Prepared::new(&ds).map_err(|e| anyhow!(e))?;
     let (d, base, winner) = analysis::diagnose(&prep, &model).map_err(|e| anyhow!(e))?;
+    let after = winner.as_ref().map(|w| w.sims.as_slice());
+    longreach_viz::ident::log_comparison(&rec, &prep, &d.comparison, &base.sims, Some(&d), after);
+    rerun_args::finish(rec);
     println!(
         "baseline NRMSE {:.4} (noise floor {:.4})",
         d.baseline.nrmse, d.baseline.noise_floor_nrmse

@@ -9,6 +9,7 @@ mod batch_cmd;
 mod bode;
 mod ident_cmd;
 mod output;
+mod rerun_args;
 mod ropes;
 mod run_cmd;
 

@@ -11,6 +11,7 @@ use comfy_table::{presets::UTF8_BORDERS_ONLY, Table};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::output::{write_atomic, write_atomic_with};
+use crate::rerun_args::{self, RerunArgs};
 
 /// Arguments of `longreach run`.
 #[derive(Debug, Args)]
@@ -23,6 +24,8 @@ pub struct RunArgs {
     /// Write the metrics as JSON to this file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
+    #[command(flatten)]
+    pub rerun: RerunArgs,
 }
 
 fn opt(v: Option<f64>, digits: usize) -> String {
@@ -47,17 +50,30 @@ pub fn run(args: &RunArgs) -> Result<ExitCode> {
     } else {
         ProgressBar::hidden()
     };
+    if let (Some(dir), Some(_)) = (&args.out, &args.rerun.rerun) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    let rec = args.rerun.recorder(
+        &args.scenario.display().to_string(),
+        &rerun_args::default_rrd(args.out.as_deref(), &args.scenario, ""),
+    )?;
+    let mut viewer = longreach_viz::arm::ArmLogger::new(&rec, arm);
     let t0 = Instant::now();
-    let (trace, metrics) = longreach_arm::run::run(
+    let result = longreach_arm::run::run_observed(
         arm,
         sc.sim.duration_s,
         sc.sim.output_every,
         sc.sim.residual_window_s,
         &mut |i, _| bar.set_position(i as u64),
-    )
-    .with_context(|| format!("running {}", args.scenario.display()))?;
+        &mut |st| viewer.observe(st),
+    );
     bar.finish_and_clear();
     let wall = t0.elapsed().as_secs_f64();
+    // The recording of a failed run is kept: it shows how it failed.
+    viewer.finish();
+    rerun_args::finish(rec);
+    let (trace, metrics) =
+        result.with_context(|| format!("running {}", args.scenario.display()))?;
 
     let mut jt = Table::new();
     jt.load_preset(UTF8_BORDERS_ONLY).set_header(vec![

@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use longreach_drive::sweep::{self, FrequencyPoint};
+use longreach_drive::sweep::{self, FrequencyPoint, RigTrace};
 use longreach_drive::{
     rig_resonance, DriveError, InputSignal, Resonance, RigModel, RigSpec, SteppedSine,
 };
@@ -212,6 +212,11 @@ impl BodeScenario {
 
     /// Simulates one mean tension (index into `rigs`).
     pub fn run_one(&self, index: usize) -> Result<BodeRun, DriveError> {
+        self.run_one_traced(index).map(|(run, _)| run)
+    }
+
+    /// [`Self::run_one`], also returning the run's time series (one sample per step).
+    pub fn run_one_traced(&self, index: usize) -> Result<(BodeRun, RigTrace), DriveError> {
         let spec = &self.rigs[index];
         let model = RigModel::new(spec.clone(), self.dt_s)?;
         let input = InputSignal::stepped_sine(self.sine.clone())?;
@@ -224,13 +229,14 @@ impl BodeScenario {
             .copied()
             .fold(f64::INFINITY, f64::min);
         let f_hi = self.sine.frequencies_hz.iter().copied().fold(0.0, f64::max);
-        Ok(BodeRun {
+        let run = BodeRun {
             mean_tension_n: spec.mean_tension_n,
             analytic: rig_resonance(spec, f_lo, f_hi),
             simulated: peak_of_points(&points),
             slack: points.iter().any(|p| p.min_tension_n <= 0.0),
             points,
-        })
+        };
+        Ok((run, trace))
     }
 
     /// Simulates every mean tension, in order.

@@ -1,0 +1,320 @@
+//! Frames of a run buffered in memory and sent to Rerun in columns.
+
+use rerun::components::{RotationQuat, Translation3D};
+use rerun::{Color, LineStrip3D, LineStrips3D, Quaternion, Scalars, TimeColumn, Transform3D};
+
+use crate::Recorder;
+
+/// Chooses the frames to log at `hz` frames per simulated second: the first state at
+/// or after every multiple of `1/hz` (and the first state of the run).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RateGate {
+    period_s: f64,
+    next_s: f64,
+}
+
+impl RateGate {
+    /// A gate at `hz` (> 0) starting at t = 0.
+    pub fn new(hz: f64) -> Self {
+        Self {
+            period_s: 1.0 / hz,
+            next_s: 0.0,
+        }
+    }
+
+    /// True when the state at `time_s` is to be logged.
+    pub fn due(&mut self, time_s: f64) -> bool {
+        // Half a nanosecond of slack: times are sums of dt and land a rounding error
+        // off the multiples of the period.
+        if time_s + 5e-10 < self.next_s {
+            return false;
+        }
+        let k = ((time_s + 5e-10) / self.period_s).floor() + 1.0;
+        self.next_s = k * self.period_s;
+        true
+    }
+}
+
+/// Handle of a scalar series in [`Columns`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SeriesId(usize);
+/// Handle of a pose channel in [`Columns`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TransformId(usize);
+/// Handle of a line-strip channel in [`Columns`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StripsId(usize);
+
+#[derive(Debug, Clone)]
+enum Index {
+    DurationS(Vec<f64>),
+    Sequence(Vec<i64>),
+}
+
+#[derive(Debug, Clone)]
+struct Strips {
+    entity: String,
+    radius_m: f32,
+    /// Strips per frame.
+    counts: Vec<usize>,
+    points: Vec<Vec<[f32; 3]>>,
+    colors: Vec<[u8; 4]>,
+}
+
+/// Channels (scalar series, poses, coloured line strips) filled frame by frame and
+/// sent with `send_columns` by [`Columns::flush`]. Pushing a frame costs a few
+/// vector pushes; one flush per simulated second (or per run) keeps logging cheap.
+#[derive(Debug, Clone)]
+pub struct Columns {
+    timeline: &'static str,
+    index: Index,
+    series: Vec<(String, Vec<f64>)>,
+    poses: Vec<(String, Vec<[f32; 3]>, Vec<[f32; 4]>)>,
+    strips: Vec<Strips>,
+}
+
+impl Columns {
+    /// Channels indexed by a duration timeline `timeline` in seconds.
+    pub fn on_duration(timeline: &'static str) -> Self {
+        Self::with_index(timeline, Index::DurationS(Vec::new()))
+    }
+
+    /// Channels indexed by an integer sequence timeline `timeline`.
+    pub fn on_sequence(timeline: &'static str) -> Self {
+        Self::with_index(timeline, Index::Sequence(Vec::new()))
+    }
+
+    fn with_index(timeline: &'static str, index: Index) -> Self {
+        Self {
+            timeline,
+            index,
+            series: Vec::new(),
+            poses: Vec::new(),
+            strips: Vec::new(),
+        }
+    }
+
+    /// Adds a scalar series at `entity`.
+    pub fn series(&mut self, entity: impl Into<String>) -> SeriesId {
+        self.series.push((entity.into(), Vec::new()));
+        SeriesId(self.series.len() - 1)
+    }
+
+    /// Adds a pose (translation + rotation) channel at `entity`.
+    pub fn pose(&mut self, entity: impl Into<String>) -> TransformId {
+        self.poses.push((entity.into(), Vec::new(), Vec::new()));
+        TransformId(self.poses.len() - 1)
+    }
+
+    /// Adds a channel of coloured line strips of `radius_m` at `entity`.
+    pub fn strips(&mut self, entity: impl Into<String>, radius_m: f64) -> StripsId {
+        self.strips.push(Strips {
+            entity: entity.into(),
+            radius_m: radius_m as f32,
+            counts: Vec::new(),
+            points: Vec::new(),
+            colors: Vec::new(),
+        });
+        StripsId(self.strips.len() - 1)
+    }
+
+    /// Starts a frame at `time_s` (duration timelines).
+    pub fn frame_at_s(&mut self, time_s: f64) {
+        match &mut self.index {
+            Index::DurationS(t) => t.push(time_s),
+            Index::Sequence(t) => t.push((time_s * 1e3).round() as i64),
+        }
+    }
+
+    /// Starts a frame at step `k` (sequence timelines).
+    pub fn frame_at(&mut self, k: i64) {
+        match &mut self.index {
+            Index::DurationS(t) => t.push(k as f64),
+            Index::Sequence(t) => t.push(k),
+        }
+    }
+
+    /// Frames buffered since the last flush.
+    pub fn frames(&self) -> usize {
+        match &self.index {
+            Index::DurationS(t) => t.len(),
+            Index::Sequence(t) => t.len(),
+        }
+    }
+
+    /// The value of series `id` in the current frame.
+    pub fn push(&mut self, id: SeriesId, value: f64) {
+        self.series[id.0].1.push(value);
+    }
+
+    /// The pose of channel `id` in the current frame: translation (m) and rotation
+    /// quaternion `[x, y, z, w]`.
+    pub fn push_pose(&mut self, id: TransformId, translation_m: [f64; 3], quat_xyzw: [f64; 4]) {
+        let p = &mut self.poses[id.0];
+        p.1.push(translation_m.map(|v| v as f32));
+        p.2.push(quat_xyzw.map(|v| v as f32));
+    }
+
+    /// The strips of channel `id` in the current frame, each with its colour.
+    pub fn push_strips<I>(&mut self, id: StripsId, strips: I)
+    where
+        I: IntoIterator<Item = (Vec<[f64; 3]>, [u8; 4])>,
+    {
+        let s = &mut self.strips[id.0];
+        let mut n = 0;
+        for (points, color) in strips {
+            s.points
+                .push(points.into_iter().map(|p| p.map(|v| v as f32)).collect());
+            s.colors.push(color);
+            n += 1;
+        }
+        s.counts.push(n);
+    }
+
+    fn time_column(&self) -> TimeColumn {
+        match &self.index {
+            Index::DurationS(t) => TimeColumn::new_duration_secs(self.timeline, t.clone()),
+            Index::Sequence(t) => TimeColumn::new_sequence(self.timeline, t.clone()),
+        }
+    }
+
+    /// Sends every buffered frame to `rec` and empties the buffers (keeping the
+    /// channels). A channel that missed a frame is a bug: it is reported, not sent.
+    pub fn flush(&mut self, rec: &Recorder) {
+        let n = self.frames();
+        if n == 0 {
+            return;
+        }
+        if rec.is_enabled() {
+            let stream = rec.stream();
+            for (entity, values) in &self.series {
+                if values.len() != n {
+                    rec.report::<String>(
+                        entity,
+                        Err(format!("{} values for {n} frames", values.len())),
+                    );
+                    continue;
+                }
+                let cols = Scalars::new(values.iter().copied()).columns_of_unit_batches();
+                rec.report(
+                    entity,
+                    cols.map_err(|e| e.to_string()).and_then(|c| {
+                        stream
+                            .send_columns(entity.as_str(), [self.time_column()], c)
+                            .map_err(|e| e.to_string())
+                    }),
+                );
+            }
+            for (entity, tr, q) in &self.poses {
+                if tr.len() != n {
+                    rec.report::<String>(entity, Err(format!("{} poses for {n} frames", tr.len())));
+                    continue;
+                }
+                let cols = Transform3D::update_fields()
+                    .with_many_translation(tr.iter().map(|t| Translation3D::from(*t)))
+                    .with_many_quaternion(
+                        q.iter()
+                            .map(|q| RotationQuat::from(Quaternion::from_xyzw(*q))),
+                    )
+                    .columns_of_unit_batches();
+                rec.report(
+                    entity,
+                    cols.map_err(|e| e.to_string()).and_then(|c| {
+                        stream
+                            .send_columns(entity.as_str(), [self.time_column()], c)
+                            .map_err(|e| e.to_string())
+                    }),
+                );
+            }
+            for s in &self.strips {
+                if s.counts.len() != n {
+                    rec.report::<String>(
+                        &s.entity,
+                        Err(format!("{} strip frames for {n} frames", s.counts.len())),
+                    );
+                    continue;
+                }
+                let cols = LineStrips3D::update_fields()
+                    .with_strips(
+                        s.points
+                            .iter()
+                            .map(|p| LineStrip3D::from_iter(p.iter().copied())),
+                    )
+                    .with_colors(
+                        s.colors
+                            .iter()
+                            .map(|c| Color::from_unmultiplied_rgba(c[0], c[1], c[2], c[3])),
+                    )
+                    .with_radii(std::iter::repeat_n(s.radius_m, s.points.len()))
+                    .columns(s.counts.iter().copied());
+                rec.report(
+                    &s.entity,
+                    cols.map_err(|e| e.to_string()).and_then(|c| {
+                        stream
+                            .send_columns(s.entity.as_str(), [self.time_column()], c)
+                            .map_err(|e| e.to_string())
+                    }),
+                );
+            }
+        }
+        match &mut self.index {
+            Index::DurationS(t) => t.clear(),
+            Index::Sequence(t) => t.clear(),
+        }
+        for (_, v) in &mut self.series {
+            v.clear();
+        }
+        for (_, t, q) in &mut self.poses {
+            t.clear();
+            q.clear();
+        }
+        for s in &mut self.strips {
+            s.counts.clear();
+            s.points.clear();
+            s.colors.clear();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_gate_picks_one_state_per_period_from_a_fine_grid() {
+        let mut g = RateGate::new(60.0);
+        let dt = 1e-3;
+        let picked: Vec<usize> = (0..=1000).filter(|&i| g.due(i as f64 * dt)).collect();
+        // t = 0, then the first step at or after k/60 s for k = 1..60.
+        assert_eq!(picked.len(), 61);
+        assert_eq!(picked[0], 0);
+        assert_eq!(picked[1], 17); // 1/60 = 16.67 ms
+        assert_eq!(picked[60], 1000);
+        for w in picked.windows(2) {
+            assert!((16..=17).contains(&(w[1] - w[0])), "{w:?}");
+        }
+        // A coarse grid logs every state.
+        let mut g = RateGate::new(60.0);
+        assert!((0..10).all(|i| g.due(i as f64 * 0.1)));
+    }
+
+    #[test]
+    fn flushing_empties_the_buffers_and_keeps_the_channels() {
+        let mut c = Columns::on_duration("sim_time");
+        let a = c.series("/a");
+        let p = c.pose("/p");
+        let s = c.strips("/s", 0.01);
+        for k in 0..3 {
+            c.frame_at_s(k as f64);
+            c.push(a, k as f64);
+            c.push_pose(p, [0.0; 3], [0.0, 0.0, 0.0, 1.0]);
+            c.push_strips(s, [(vec![[0.0; 3], [1.0; 3]], [1, 2, 3, 255])]);
+        }
+        assert_eq!(c.frames(), 3);
+        c.flush(&Recorder::off());
+        assert_eq!(c.frames(), 0);
+        c.frame_at_s(4.0);
+        c.push(a, 1.0);
+        assert_eq!(c.frames(), 1);
+    }
+}

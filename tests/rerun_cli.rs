@@ -1,0 +1,297 @@
+//! `--rerun` from the command line: recordings read back with Rerun's own Python SDK
+//! (`tools/rrd_summary.py`, rerun-sdk 0.36.3, installed by `.ci/run`), results
+//! unchanged by logging, unreachable viewers reported once without stopping the run.
+//!
+//! Without the Python SDK the read-back checks are skipped with a message, unless
+//! `LONGREACH_REQUIRE_RERUN=1` (as in CI), which makes its absence a failure.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+const ROOT: &str = env!("CARGO_MANIFEST_DIR");
+
+fn longreach(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_longreach"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn ok(o: &Output) -> String {
+    assert!(
+        o.status.success(),
+        "stdout:\n{}\nstderr:\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// The recording's contents as `tools/rrd_summary.py` reports them, or `None` when
+/// the Python SDK is missing (and not required).
+fn read_back(rrd: &Path) -> Option<Value> {
+    let o = Command::new("python3")
+        .arg(format!("{ROOT}/tools/rrd_summary.py"))
+        .arg(rrd)
+        .output();
+    let required = std::env::var("LONGREACH_REQUIRE_RERUN").is_ok_and(|v| v == "1");
+    match o {
+        Ok(o) if o.status.success() => Some(serde_json::from_slice(&o.stdout).unwrap()),
+        Ok(o) if !required && String::from_utf8_lossy(&o.stderr).contains("No module named") => {
+            eprintln!("SKIPPED read-back: `pip install rerun-sdk==0.36.3` to check recordings");
+            None
+        }
+        Err(e) if !required => {
+            eprintln!("SKIPPED read-back: no python3 ({e})");
+            None
+        }
+        Ok(o) => panic!(
+            "reading {} back failed:\n{}",
+            rrd.display(),
+            String::from_utf8_lossy(&o.stderr)
+        ),
+        Err(e) => panic!("python3: {e}"),
+    }
+}
+
+fn entity<'a>(summary: &'a Value, path: &str) -> &'a Value {
+    let e = &summary["entities"][path];
+    assert!(
+        e.is_object(),
+        "no entity {path}; have {:?}",
+        summary["entities"]
+            .as_object()
+            .unwrap()
+            .keys()
+            .collect::<Vec<_>>()
+    );
+    e
+}
+
+fn scalars(e: &Value) -> Vec<(f64, f64)> {
+    e["scalars"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|tv| (tv[0].as_f64().unwrap(), tv[1].as_f64().unwrap_or(f64::NAN)))
+        .collect()
+}
+
+#[test]
+fn an_arm_run_is_recorded_with_every_entity_and_logging_changes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = format!("{ROOT}/scenarios/arm_dyneema2_distal_step.toml");
+    let plain = dir.path().join("plain");
+    let logged = dir.path().join("logged");
+    let rrd = dir.path().join("arm.rrd");
+    ok(&longreach(&[
+        "run",
+        &scenario,
+        "--out",
+        plain.to_str().unwrap(),
+    ]));
+    let out = ok(&longreach(&[
+        "run",
+        &scenario,
+        "--out",
+        logged.to_str().unwrap(),
+        "--rerun",
+        &format!("save:{}", rrd.display()),
+        "--rerun-hz",
+        "20",
+    ]));
+    assert!(out.contains("wrote Rerun recording"), "{out}");
+    // Logging only reads the states: the results are bitwise the same.
+    let a = std::fs::read(plain.join("timeseries.csv")).unwrap();
+    let b = std::fs::read(logged.join("timeseries.csv")).unwrap();
+    assert!(a == b, "time series differ with logging on");
+    assert_eq!(
+        std::fs::read(plain.join("metrics.json")).unwrap(),
+        std::fs::read(logged.join("metrics.json")).unwrap()
+    );
+    assert!(std::fs::metadata(&rrd).unwrap().len() > 10_000);
+    let Some(s) = read_back(&rrd) else { return };
+    assert_eq!(s["sdk_version"], "0.36.3");
+    assert!(
+        s["blueprints"].as_u64().unwrap() >= 1,
+        "no default blueprint"
+    );
+    // 10 s at 20 Hz: t = 0 plus 200 frames.
+    let frames = 201;
+    let q5 = entity(&s, "/series/joints/j5/q_rad");
+    assert_eq!(q5["rows"], frames);
+    assert_eq!(entity(&s, "/series/tensions/j1/pos_n")["rows"], frames);
+    assert_eq!(entity(&s, "/series/motors/j3/torque_n_m")["rows"], frames);
+    assert_eq!(entity(&s, "/series/tip/error_m")["rows"], frames);
+    assert_eq!(entity(&s, "/world/ropes/j5")["rows"], frames);
+    assert_eq!(entity(&s, "/world/arm/link5")["rows"], frames);
+    assert!(entity(&s, "/world/arm/link5")["components"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|c| c.as_str().unwrap().starts_with("Transform3D")));
+    assert_eq!(entity(&s, "/world/motors")["static"], true);
+    // Values: the recorded joint angle equals the CSV's at the same times (the CSV
+    // keeps every 10th step with 10 significant digits).
+    let csv = String::from_utf8(b).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = header.iter().position(|c| *c == "q_j5_rad").unwrap();
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    let rec = scalars(q5);
+    let mut checked = 0;
+    for (t, v) in &rec {
+        if let Some(r) = rows.iter().find(|r| (r[0] - t).abs() < 1e-9) {
+            assert!(
+                (r[col] - v).abs() <= 1e-9 * v.abs().max(1e-3),
+                "t = {t}: {v} vs CSV {}",
+                r[col]
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked >= 200, "only {checked} frames matched CSV rows");
+    // The distal step moves j5: its recorded angle ends near the command.
+    let qref = scalars(entity(&s, "/series/joints/j5/q_ref_rad"));
+    let (last_q, last_ref) = (rec.last().unwrap().1, qref.last().unwrap().1);
+    assert!(
+        (last_q - last_ref).abs() < 0.01 * last_ref.abs().max(0.01),
+        "{last_q} vs {last_ref}"
+    );
+}
+
+#[test]
+fn a_bode_run_records_gain_and_phase_per_frequency() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = dir.path().join("b.toml");
+    let text = std::fs::read_to_string(format!("{ROOT}/scenarios/bode_stainless1.toml"))
+        .unwrap()
+        .replace(
+            "mean_tensions_n = [49.0, 98.0, 147.0, 196.0, 245.0, 294.0, 343.0, 392.0]",
+            "mean_tensions_n = [147.0]",
+        )
+        .replace(
+            "frequencies_hz = [0.1, 0.2, 0.4, 0.7, 1.0, 1.4, 1.8, 2.1, 2.4, 2.7, 3.0, 3.3, 3.6, 4.0, 4.5, 5.0, 6.0]",
+            "frequencies_hz = [1.0, 3.0, 5.0]",
+        );
+    assert!(text.contains("[147.0]") && text.contains("[1.0, 3.0, 5.0]"));
+    std::fs::write(&scenario, text).unwrap();
+    let json = dir.path().join("b.json");
+    let rrd = dir.path().join("b.rrd");
+    ok(&longreach(&[
+        "bode",
+        scenario.to_str().unwrap(),
+        "--quiet",
+        "--json",
+        json.to_str().unwrap(),
+        &format!("--rerun=save:{}", rrd.display()),
+    ]));
+    let Some(s) = read_back(&rrd) else { return };
+    let j: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let points = j["runs"][0]["points"].as_array().unwrap();
+    let gain = scalars(entity(&s, "/bode/T147N/gain_db/simulated"));
+    assert_eq!(gain.len(), 3);
+    for (p, (f_mhz, g)) in points.iter().zip(&gain) {
+        assert!((p["frequency_hz"].as_f64().unwrap() * 1e3 - f_mhz).abs() < 0.5);
+        assert!((p["simulated_gain_db"].as_f64().unwrap() - g).abs() < 1e-12);
+    }
+    assert_eq!(
+        entity(&s, "/bode/T147N/phase_deg/analytic")["rows"],
+        3,
+        "one row per test frequency"
+    );
+    let out = entity(&s, "/rig/T147N/series/output_rad");
+    assert!(out["rows"].as_u64().unwrap() > 100);
+    assert!(entity(&s, "/rig/T147N/ropes")["rows"] == out["rows"]);
+}
+
+#[test]
+fn compare_records_measured_model_and_residual_per_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let rrd = dir.path().join("c.rrd");
+    let data = format!("{ROOT}/data/examples/example_relax_control");
+    ok(&longreach(&[
+        "compare",
+        &data,
+        "--rerun",
+        &format!("save:{}", rrd.display()),
+    ]));
+    let Some(s) = read_back(&rrd) else { return };
+    let ents = s["entities"].as_object().unwrap();
+    let measured: Vec<&String> = ents
+        .keys()
+        .filter(|k| k.starts_with("/compare/") && k.ends_with("/measured"))
+        .collect();
+    assert!(
+        !measured.is_empty(),
+        "{:?}",
+        ents.keys().collect::<Vec<_>>()
+    );
+    for m in measured {
+        let run = m.trim_end_matches("/measured");
+        let meas = scalars(&ents[m]);
+        let model = scalars(&ents[&format!("{run}/model")]);
+        let resid = scalars(&ents[&format!("{run}/residual")]);
+        assert_eq!(meas.len(), model.len());
+        assert!(meas.len() > 100);
+        for k in [0, meas.len() / 2, meas.len() - 1] {
+            assert!((meas[k].1 - model[k].1 - resid[k].1).abs() < 1e-9);
+        }
+    }
+}
+
+#[test]
+fn an_unreachable_viewer_is_reported_once_and_the_run_goes_on() {
+    let scenario = format!("{ROOT}/scenarios/arm5_elastic_stainless1.toml");
+    // No viewer listens on port 1.
+    let o = longreach(&["run", &scenario, "--rerun", "connect:127.0.0.1:1"]);
+    let stdout = ok(&o);
+    assert!(stdout.contains("tip position error"), "{stdout}");
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(stderr.matches("rerun:").count(), 1, "{stderr}");
+    assert!(stderr.contains("127.0.0.1:1"), "{stderr}");
+    // `spawn` with no viewer on PATH: a clear message with the install command.
+    let o = Command::new(env!("CARGO_BIN_EXE_longreach"))
+        .args(["run", &scenario, "--rerun", "spawn"])
+        .env("PATH", "/nonexistent")
+        .output()
+        .unwrap();
+    ok(&o);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(stderr.matches("rerun:").count(), 1, "{stderr}");
+    assert!(stderr.contains("pip install rerun-sdk==0.36.3"), "{stderr}");
+}
+
+#[test]
+fn bad_targets_and_rates_fail_before_the_run() {
+    let scenario = format!("{ROOT}/scenarios/arm5_elastic_stainless1.toml");
+    for (args, expect) in [
+        (vec!["--rerun", "viewer"], "save:FILE.rrd"),
+        (vec!["--rerun", "connect:host"], "needs a port"),
+        (
+            vec!["--rerun", "save:/nonexistent-dir/x.rrd"],
+            "folder exists",
+        ),
+        (vec!["--rerun", "--rerun-hz", "0"], "--rerun-hz"),
+    ] {
+        let mut all = vec!["run", scenario.as_str()];
+        all.extend(args.iter().copied());
+        let o = longreach(&all);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(stderr.contains(expect), "{args:?}: {stderr}");
+        assert!(
+            !String::from_utf8_lossy(&o.stdout).contains("steps of"),
+            "ran anyway"
+        );
+    }
+    // A file given as the target: the message says how to write it.
+    let o = longreach(&["run", &scenario, "--rerun", &scenario]);
+    assert_eq!(o.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains("before `--rerun`"), "{stderr}");
+}

@@ -1,0 +1,51 @@
+#!/usr/bin/env python3
+"""Reads a Rerun recording back with Rerun's own Python SDK (rerun-sdk 0.36.3) and
+prints, as JSON, what every entity holds: row count, timelines, components, and for
+scalar series the (time, value) pairs. Used by tests/rerun_cli.rs; also handy to
+check a recording by hand:
+
+    python3 tools/rrd_summary.py run.rrd | python3 -m json.tool | less
+"""
+import json
+import sys
+
+import rerun as rr
+import rerun.experimental as rrx
+
+
+def seconds(t):
+    return t.total_seconds() if hasattr(t, "total_seconds") else t
+
+
+def main(path):
+    reader = rrx.RrdReader(path)
+    out = {"sdk_version": rr.__version__, "blueprints": len(reader.blueprints()), "entities": {}}
+    for chunk in reader.store().stream():
+        rb = chunk.to_record_batch()
+        names = rb.schema.names
+        ent = out["entities"].setdefault(
+            chunk.entity_path,
+            {"rows": 0, "static": chunk.is_static, "timelines": [], "components": [], "scalars": []},
+        )
+        ent["rows"] += chunk.num_rows
+        for tl in chunk.timeline_names:
+            if tl not in ent["timelines"]:
+                ent["timelines"].append(tl)
+        for n in names:
+            if n.startswith("rerun.controls") or n in chunk.timeline_names:
+                continue
+            if n not in ent["components"]:
+                ent["components"].append(n)
+        index = "sim_time" if "sim_time" in names else ("frequency_mhz" if "frequency_mhz" in names else None)
+        if "Scalars:scalars" in names and index:
+            times = rb.column(index).to_pylist()
+            values = rb.column("Scalars:scalars").to_pylist()
+            for t, v in zip(times, values):
+                ent["scalars"].append([seconds(t), v[0] if v else None])
+    for ent in out["entities"].values():
+        ent["scalars"].sort(key=lambda tv: tv[0])
+    json.dump(out, sys.stdout)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])
