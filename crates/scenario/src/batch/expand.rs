@@ -731,11 +731,7 @@ mod tests {
         std::fs::write(dir.path().join("side.txt"), "one").unwrap();
         std::fs::write(
             dir.path().join("base.toml"),
-            scen.replacen(
-                "title = \"Paper rig, dyneema2\"",
-                "title = \"side.txt\"",
-                1,
-            ),
+            scen.replacen("title = \"Paper rig, dyneema2\"", "title = \"side.txt\"", 1),
         )
         .unwrap();
         let text = "base = \"base.toml\"\n";
