@@ -187,29 +187,30 @@ impl Columns {
         }
         if rec.is_enabled() {
             let stream = rec.stream();
-            for (entity, values) in &self.series {
-                if values.len() != n {
-                    rec.report::<String>(
-                        entity,
-                        Err(format!("{} values for {n} frames", values.len())),
-                    );
-                    continue;
-                }
-                let cols = Scalars::new(values.iter().copied()).columns_of_unit_batches();
-                rec.report(
-                    entity,
-                    cols.map_err(|e| e.to_string()).and_then(|c| {
+            let time = self.time_column();
+            // Sends one channel's columns, or reports why it cannot (once).
+            let send = |entity: &str, frames: usize, columns: Result<Vec<_>, String>| {
+                let sent = if frames == n {
+                    columns.and_then(|c| {
                         stream
-                            .send_columns(entity.as_str(), [self.time_column()], c)
+                            .send_columns(entity, [time.clone()], c)
                             .map_err(|e| e.to_string())
-                    }),
+                    })
+                } else {
+                    Err(format!("{frames} entries for {n} frames"))
+                };
+                rec.report(entity, sent);
+            };
+            let err = |e: rerun::SerializationError| e.to_string();
+            for (entity, values) in &self.series {
+                let cols = Scalars::new(values.iter().copied()).columns_of_unit_batches();
+                send(
+                    entity,
+                    values.len(),
+                    cols.map(Iterator::collect).map_err(err),
                 );
             }
             for (entity, tr, q) in &self.poses {
-                if tr.len() != n {
-                    rec.report::<String>(entity, Err(format!("{} poses for {n} frames", tr.len())));
-                    continue;
-                }
                 let cols = Transform3D::update_fields()
                     .with_many_translation(tr.iter().map(|t| Translation3D::from(*t)))
                     .with_many_quaternion(
@@ -217,23 +218,9 @@ impl Columns {
                             .map(|q| RotationQuat::from(Quaternion::from_xyzw(*q))),
                     )
                     .columns_of_unit_batches();
-                rec.report(
-                    entity,
-                    cols.map_err(|e| e.to_string()).and_then(|c| {
-                        stream
-                            .send_columns(entity.as_str(), [self.time_column()], c)
-                            .map_err(|e| e.to_string())
-                    }),
-                );
+                send(entity, tr.len(), cols.map(Iterator::collect).map_err(err));
             }
             for s in &self.strips {
-                if s.counts.len() != n {
-                    rec.report::<String>(
-                        &s.entity,
-                        Err(format!("{} strip frames for {n} frames", s.counts.len())),
-                    );
-                    continue;
-                }
                 let cols = LineStrips3D::update_fields()
                     .with_strips(
                         s.points
@@ -247,13 +234,10 @@ impl Columns {
                     )
                     .with_radii(std::iter::repeat_n(s.radius_m, s.points.len()))
                     .columns(s.counts.iter().copied());
-                rec.report(
+                send(
                     &s.entity,
-                    cols.map_err(|e| e.to_string()).and_then(|c| {
-                        stream
-                            .send_columns(s.entity.as_str(), [self.time_column()], c)
-                            .map_err(|e| e.to_string())
-                    }),
+                    s.counts.len(),
+                    cols.map(Iterator::collect).map_err(err),
                 );
             }
         }
