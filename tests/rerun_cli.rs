@@ -295,3 +295,49 @@ fn bad_targets_and_rates_fail_before_the_run() {
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(stderr.contains("before `--rerun`"), "{stderr}");
 }
+
+#[test]
+fn a_batch_records_the_selected_scenarios_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("quick");
+    let batch = format!("{ROOT}/scenarios/batch_quick.toml");
+    let o = longreach(&[
+        "batch",
+        &batch,
+        "-j",
+        "2",
+        "--out",
+        out.to_str().unwrap(),
+        "--rerun-select",
+        "1,4",
+    ]);
+    ok(&o);
+    let rec = out.join("rerun");
+    let mut names: Vec<String> = std::fs::read_dir(&rec)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["1.rrd", "4.rrd"]);
+    // A selection outside the batch fails before running.
+    let o = longreach(&[
+        "batch",
+        &batch,
+        "--out",
+        out.to_str().unwrap(),
+        "--rerun-select",
+        "99",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--dry-run"));
+    let Some(s) = read_back(&rec.join("4.rrd")) else {
+        return;
+    };
+    let ents = s["entities"].as_object().unwrap();
+    assert!(
+        ents.keys()
+            .any(|k| k.starts_with("/bode/") && k.ends_with("/gain_db/simulated")),
+        "{:?}",
+        ents.keys().collect::<Vec<_>>()
+    );
+}
