@@ -23,22 +23,7 @@ fn arm_batch_rows_equal_direct_runs() {
     )
     .unwrap();
     let out = tmp.path().join("out");
-    let o = Command::new(env!("CARGO_BIN_EXE_longreach"))
-        .args([
-            "batch",
-            batch.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let csv = std::fs::read_to_string(out.join("results.csv")).unwrap();
+    let csv = run_batch(&batch, &out);
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     assert_eq!(
@@ -89,22 +74,7 @@ fn arm_rope_preload_payload_study_is_monotone_in_payload() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("out");
     let batch = scenarios().join("batch_arm_ropes_preloads_payloads.toml");
-    let o = Command::new(env!("CARGO_BIN_EXE_longreach"))
-        .args([
-            "batch",
-            batch.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let csv = std::fs::read_to_string(out.join("results.csv")).unwrap();
+    let csv = run_batch(&batch, &out);
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     let col = |name: &str| {
@@ -154,4 +124,24 @@ fn arm_rope_preload_payload_study_is_monotone_in_payload() {
             "peak {light:?} vs {heavy:?}"
         );
     }
+}
+
+/// Runs `longreach batch BATCH --out OUT`, demands success, returns results.csv.
+fn run_batch(batch: &std::path::Path, out: &std::path::Path) -> String {
+    let o = Command::new(env!("CARGO_BIN_EXE_longreach"))
+        .args([
+            "batch",
+            batch.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    std::fs::read_to_string(out.join("results.csv")).unwrap()
 }
