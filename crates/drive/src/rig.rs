@@ -478,24 +478,48 @@ impl RigModel {
                 self.stepper.commit(&prep[i], &mut st.ropes[i], e);
             }
         }
+        let ropes_finite = st.ropes.iter().all(|r| r.tension_n.is_finite());
+        self.end_step(
+            st,
+            input_rad,
+            (phi0, w0, a0),
+            phi,
+            x,
+            ropes_finite,
+            "tensions",
+        )
+    }
+
+    /// Ends a step at output angle `phi` and carriage `x`: trapezoidal rate and
+    /// acceleration from the step's start `(phi0, w0, a0)`, time and input advanced;
+    /// a non-finite state (`states_finite` covers the ropes and relays) or a runaway
+    /// rate is a blow-up naming the time and the output-end tensions (`tensions`).
+    fn end_step(
+        &self,
+        st: &mut RigState,
+        input_rad: f64,
+        (phi0, w0, a0): (f64, f64, f64),
+        phi: f64,
+        x: f64,
+        states_finite: bool,
+        tensions: &str,
+    ) -> Result<(), DriveError> {
+        let (two_h, four_h2) = (self.two_over_h, self.four_over_h2);
         let w1 = two_h * (phi - phi0) - w0;
         let a1 = four_h2 * (phi - phi0) - two_h * 2.0 * w0 - a0;
-        st.time_s += h;
+        st.time_s += self.dt_s;
         st.input_rad = input_rad;
         st.output_rad = phi;
         st.output_rate_rad_s = w1;
         st.output_accel_rad_s2 = a1;
         st.carriage_m = x;
-        let finite = phi.is_finite()
-            && w1.is_finite()
-            && a1.is_finite()
-            && x.is_finite()
-            && st.ropes.iter().all(|r| r.tension_n.is_finite());
+        let finite =
+            phi.is_finite() && w1.is_finite() && a1.is_finite() && x.is_finite() && states_finite;
         if !finite || w1.abs() > 1e6 {
             return Err(DriveError::BlowUp {
                 time_s: st.time_s,
                 what: format!(
-                    "output angle {phi} rad, rate {w1} rad/s, tensions {} / {} N",
+                    "output angle {phi} rad, rate {w1} rad/s, {tensions} {} / {} N",
                     st.ropes[0].tension_n, st.ropes[1].tension_n
                 ),
             });
@@ -911,29 +935,16 @@ impl RigModel {
             }
             st.ropes[i] = rs.spans[i][n];
         }
-        let w1 = two_h * (phi - phi0) - w0;
-        let a1 = four_h2 * (phi - phi0) - two_h * 2.0 * w0 - a0;
-        st.time_s += h;
-        st.input_rad = input_rad;
-        st.output_rad = phi;
-        st.output_rate_rad_s = w1;
-        st.output_accel_rad_s2 = a1;
-        st.carriage_m = x;
-        let finite = phi.is_finite()
-            && w1.is_finite()
-            && a1.is_finite()
-            && x.is_finite()
-            && rs.spans.iter().flatten().all(|r| r.tension_n.is_finite())
+        let states_finite = rs.spans.iter().flatten().all(|r| r.tension_n.is_finite())
             && rs.rate_rad_s.iter().flatten().all(|w| w.is_finite());
-        if !finite || w1.abs() > 1e6 {
-            return Err(DriveError::BlowUp {
-                time_s: st.time_s,
-                what: format!(
-                    "output angle {phi} rad, rate {w1} rad/s, output-side tensions {} / {} N",
-                    st.ropes[0].tension_n, st.ropes[1].tension_n
-                ),
-            });
-        }
-        Ok(())
+        self.end_step(
+            st,
+            input_rad,
+            (phi0, w0, a0),
+            phi,
+            x,
+            states_finite,
+            "output-side tensions",
+        )
     }
 }
