@@ -668,6 +668,54 @@ impl DrivenArm {
         }
     }
 
+    /// The servo of pair `p` at the end-of-step motor angle `th1_rad` (trapezoidal
+    /// rule from `st`): its unsaturated and applied torques, and the motor equation's
+    /// residual `J a1 + b w1 - torque` and diagonal `4J/h^2 + 2b/h + d torque/d theta`
+    /// (without the ropes). `sat` is the saturation held through the Newton solve.
+    /// `None` for a kinematic motor.
+    fn servo_row(
+        &self,
+        p: usize,
+        st: &DrivenState,
+        th1_rad: f64,
+        ref_rate_rad_s: f64,
+        ff_n_m: f64,
+        sat: i8,
+    ) -> Option<ServoRow> {
+        let motor = &self.pairs[p].spec.motor;
+        let MotorMode::Servo {
+            kp_n_m_per_rad,
+            kd_n_m_s_per_rad,
+            torque_limit_n_m,
+            gravity_feedforward,
+        } = motor.mode
+        else {
+            return None;
+        };
+        let h = self.dt_s;
+        let (two_h, four_h2) = (2.0 / h, 4.0 / (h * h));
+        let dth = th1_rad - st.motor_rad[p];
+        let w1 = two_h * dth - st.motor_rate_rad_s[p];
+        let a1 = four_h2 * dth - 2.0 * two_h * st.motor_rate_rad_s[p] - st.motor_accel_rad_s2[p];
+        let raw_n_m = kp_n_m_per_rad * (st.motor_ref_rad[p] - th1_rad)
+            + kd_n_m_s_per_rad * (ref_rate_rad_s - w1)
+            + if gravity_feedforward { ff_n_m } else { 0.0 };
+        // Saturation with an active set held through the Newton solve and corrected
+        // at convergence (no chattering between pieces).
+        let (torque_n_m, dservo) = if sat == 0 {
+            (raw_n_m, kp_n_m_per_rad + two_h * kd_n_m_s_per_rad)
+        } else {
+            (f64::from(sat) * torque_limit_n_m, 0.0)
+        };
+        let (jm, bm) = (motor.inertia_kg_m2, motor.damping_n_m_s);
+        Some(ServoRow {
+            raw_n_m,
+            torque_n_m,
+            residual_n_m: jm * a1 + bm * w1 - torque_n_m,
+            diag: four_h2 * jm + two_h * bm + dservo,
+        })
+    }
+
     /// Advances one step of `dt_s`.
     pub fn step(&self, st: &mut DrivenState) -> Result<(), ArmError> {
         let n = self.spec.ndofs();
@@ -825,37 +873,15 @@ impl DrivenArm {
                 for &k in &pair.nz {
                     sc.rhs[k] += pair.row[k] * phi;
                 }
-                let (servo, b11, r0) = match s.motor.mode {
-                    MotorMode::Kinematic => (0.0, 1.0, 0.0),
-                    MotorMode::Servo {
-                        kp_n_m_per_rad,
-                        kd_n_m_s_per_rad,
-                        torque_limit_n_m,
-                        gravity_feedforward,
-                    } => {
-                        let dth = th1[p] - st.motor_rad[p];
-                        let w1 = two_h * dth - st.motor_rate_rad_s[p];
-                        let a1 = four_h2 * dth
-                            - 2.0 * two_h * st.motor_rate_rad_s[p]
-                            - st.motor_accel_rad_s2[p];
-                        let raw = kp_n_m_per_rad * (st.motor_ref_rad[p] - th1[p])
-                            + kd_n_m_s_per_rad * (ref_rate[p] - w1)
-                            + if gravity_feedforward { ff[p] } else { 0.0 };
-                        // Saturation with an active set held through the Newton solve
-                        // and corrected at convergence (no chattering between pieces).
-                        sc.raw[p] = raw;
-                        let (tq, dservo) = if sc.sat[p] == 0 {
-                            (raw, kp_n_m_per_rad + two_h * kd_n_m_s_per_rad)
-                        } else {
-                            (f64::from(sc.sat[p]) * torque_limit_n_m, 0.0)
-                        };
-                        torque[p] = tq;
-                        let jm = s.motor.inertia_kg_m2;
-                        let bm = s.motor.damping_n_m_s;
-                        let r = jm * a1 + bm * w1 - tq + rm * phi;
-                        (1.0, four_h2 * jm + two_h * bm + dservo + rm * rm * ku, r)
-                    }
-                };
+                let (servo, b11, r0) =
+                    match self.servo_row(p, st, th1[p], ref_rate[p], ff[p], sc.sat[p]) {
+                        None => (0.0, 1.0, 0.0),
+                        Some(row) => {
+                            sc.raw[p] = row.raw_n_m;
+                            torque[p] = row.torque_n_m;
+                            (1.0, row.diag + rm * rm * ku, row.residual_n_m + rm * phi)
+                        }
+                    };
                 let cfm = if cf { 1.0 } else { 0.0 };
                 let b12 = servo * cfm * rm * kx;
                 let b21 = servo * cfm * su * rm;
@@ -1075,36 +1101,16 @@ impl DrivenArm {
     ) -> Assembly {
         let n = self.spec.ndofs();
         let h = self.dt_s;
-        let (two_h, four_h2) = (2.0 / h, 4.0 / (h * h));
         let pair = &self.pairs[p];
         let s = &pair.spec;
-        let motor = match s.motor.mode {
-            MotorMode::Kinematic => MotorRow::Fixed,
-            MotorMode::Servo {
-                kp_n_m_per_rad,
-                kd_n_m_s_per_rad,
-                torque_limit_n_m,
-                gravity_feedforward,
-            } => {
-                let dth = th1[p] - st.motor_rad[p];
-                let w1 = two_h * dth - st.motor_rate_rad_s[p];
-                let a1 =
-                    four_h2 * dth - 2.0 * two_h * st.motor_rate_rad_s[p] - st.motor_accel_rad_s2[p];
-                let raw = kp_n_m_per_rad * (st.motor_ref_rad[p] - th1[p])
-                    + kd_n_m_s_per_rad * (ref_rate[p] - w1)
-                    + if gravity_feedforward { ff[p] } else { 0.0 };
-                sc.raw[p] = raw;
-                let (tq, dservo) = if sc.sat[p] == 0 {
-                    (raw, kp_n_m_per_rad + two_h * kd_n_m_s_per_rad)
-                } else {
-                    (f64::from(sc.sat[p]) * torque_limit_n_m, 0.0)
-                };
-                torque[p] = tq;
-                let jm = s.motor.inertia_kg_m2;
-                let bm = s.motor.damping_n_m_s;
+        let motor = match self.servo_row(p, st, th1[p], ref_rate[p], ff[p], sc.sat[p]) {
+            None => MotorRow::Fixed,
+            Some(row) => {
+                sc.raw[p] = row.raw_n_m;
+                torque[p] = row.torque_n_m;
                 MotorRow::Servo {
-                    residual_n_m: jm * a1 + bm * w1 - tq,
-                    diag: four_h2 * jm + two_h * bm + dservo,
+                    residual_n_m: row.residual_n_m,
+                    diag: row.diag,
                 }
             }
         };
@@ -1192,4 +1198,17 @@ impl DrivenArm {
             lu_tmp: vec![],
         }
     }
+}
+
+/// One servo's contribution to the implicit step ([`DrivenArm::servo_row`]).
+#[derive(Debug, Clone, Copy)]
+struct ServoRow {
+    /// Torque before saturation, N*m.
+    raw_n_m: f64,
+    /// Torque applied, N*m.
+    torque_n_m: f64,
+    /// `J a1 + b w1 - torque`, N*m.
+    residual_n_m: f64,
+    /// Its derivative with respect to the end motor angle, N*m/rad.
+    diag: f64,
 }
