@@ -51,6 +51,8 @@ pub struct ArmLogger<'a> {
     tensions: Vec<(SeriesId, SeriesId)>,
     tip_error: SeriesId,
     motor_points_m: Vec<Vector3<f64>>,
+    /// Drawing scale, m ([`draw_scale_m`]).
+    scale_m: f64,
     frames: usize,
 }
 
@@ -65,7 +67,8 @@ impl<'a> ArmLogger<'a> {
             .iter()
             .map(|l| cols.pose(format!("/world/arm/{}", l.name)))
             .collect();
-        let rope_radius_m = 0.004 * arm.spec_scale_m();
+        let scale_m = draw_scale_m(arm);
+        let rope_radius_m = 0.004 * scale_m;
         let joint_name = |p: usize| arm.spec.joints[arm.pairs[p].spec.joint].name.clone();
         let ropes = (0..arm.pairs.len())
             .map(|p| cols.strips(format!("/world/ropes/{}", joint_name(p)), rope_radius_m))
@@ -104,7 +107,7 @@ impl<'a> ArmLogger<'a> {
         let np = arm.pairs.len();
         let motor_points_m = (0..np)
             .map(|p| {
-                let s = arm.spec_scale_m();
+                let s = scale_m;
                 Vector3::new(
                     -0.3 * s,
                     (p as f64 - 0.5 * (np as f64 - 1.0)) * 0.12 * s,
@@ -126,6 +129,7 @@ impl<'a> ArmLogger<'a> {
             tensions,
             tip_error,
             motor_points_m,
+            scale_m,
             frames: 0,
         };
         if rec.is_enabled() {
@@ -229,7 +233,7 @@ impl<'a> ArmLogger<'a> {
             let rot = UnitQuaternion::rotation_between(&Vector3::z(), &axis).unwrap_or_else(|| {
                 UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
             });
-            let width = 0.02 * self.arm.spec_scale_m();
+            let width = 0.02 * self.scale_m;
             let n = radii.len();
             let centers: Vec<[f32; 3]> = (0..n)
                 .map(|i| {
@@ -258,7 +262,7 @@ impl<'a> ArmLogger<'a> {
             s.log_static(
                 "/world/motors",
                 &Cylinders3D::from_lengths_and_radii(
-                    vec![0.03 * self.arm.spec_scale_m() as f32; np],
+                    vec![0.03 * self.scale_m as f32; np],
                     self.arm.pairs.iter().map(|p| p.spec.motor_radius_m as f32),
                 )
                 .with_centers(
@@ -417,14 +421,8 @@ fn quat(q: &UnitQuaternion<f64>) -> Quaternion {
     Quaternion::from_xyzw([q.i as f32, q.j as f32, q.k as f32, q.w as f32])
 }
 
-/// Length scale of the arm for drawing sizes: its reach at the initial pose, m
-/// (at least 1 m).
-trait Scale {
-    fn spec_scale_m(&self) -> f64;
-}
-
-impl Scale for DrivenArm {
-    fn spec_scale_m(&self) -> f64 {
-        (0.1 * self.tip_m(&self.initial_q_rad).norm()).clamp(0.1, 1.0) * 1.0
-    }
+/// Length scale for drawing sizes: a tenth of the arm's reach at its initial pose,
+/// clamped to 0.1..1 m.
+fn draw_scale_m(arm: &DrivenArm) -> f64 {
+    (0.1 * arm.tip_m(&arm.initial_q_rad).norm()).clamp(0.1, 1.0)
 }
