@@ -273,14 +273,11 @@ pub(crate) struct RelayScratch {
     f: Vec<f64>,
     k: Vec<f64>,
     kzz: Vec<f64>,
-    kzq: Vec<f64>,
     kqz: Vec<f64>,
-    /// `K_zz^-1 K_zq`, column by column (cols x unknowns).
-    big_y: Vec<f64>,
-    /// `K_zz^-1 r_z`.
-    y: Vec<f64>,
+    /// `[r_z | K_zq]` (unknowns x (1 + cols), row-major), then after the solve
+    /// `[K_zz^-1 r_z | K_zz^-1 K_zq]`.
+    rhs: Vec<f64>,
     perm: Vec<usize>,
-    tmp: Vec<f64>,
     /// Newton update of the local unknowns.
     pub dz: Vec<f64>,
     /// Last Newton update (undamped) of each relay angle, rad.
@@ -298,12 +295,9 @@ impl RelayScratch {
             f: vec![0.0; s],
             k: vec![0.0; s],
             kzz: vec![0.0; l * l],
-            kzq: vec![0.0; l * nc],
             kqz: vec![0.0; nc * l],
-            big_y: vec![0.0; l * nc],
-            y: vec![0.0; l],
+            rhs: vec![0.0; l * (nc + 1)],
             perm: vec![0; l],
-            tmp: vec![0.0; l],
             dz: vec![0.0; l],
             prev_step: vec![0.0; 2 * c.relays()],
             damping: vec![1.0; 2 * c.relays()],
@@ -414,11 +408,10 @@ pub(crate) fn assemble(
         *x_m = need(0).min(need(1)) + 1e-12 * c.span_length_m.iter().sum::<f64>();
         return Assembly::Retry;
     }
+    let w = nc + 1;
     sc.kzz.fill(0.0);
-    sc.kzq.fill(0.0);
+    sc.rhs.fill(0.0);
     sc.kqz.fill(0.0);
-    let rz = &mut sc.y;
-    rz.fill(0.0);
     // Derivative of span (side, i) elongation with respect to the local unknowns:
     // at most four entries.
     let da = |side: usize, i: usize| -> ([(usize, f64); 4], usize) {
@@ -440,19 +433,19 @@ pub(crate) fn assemble(
         }
         (out, len)
     };
-    // Adds `w * k_s * d e_s` to row `row` of the local block.
-    let add_row = |kzz: &mut [f64], kzq: &mut [f64], row: usize, w: f64, side: usize, i: usize| {
+    // Adds `wt * k_s * d e_s` to row `row` of the local block (`K_zz` and `K_zq`).
+    let add_row = |kzz: &mut [f64], rhs: &mut [f64], row: usize, wt: f64, side: usize, i: usize| {
         let ks = sc.k[side * ns + i];
-        if ks == 0.0 || w == 0.0 {
+        if ks == 0.0 || wt == 0.0 {
             return;
         }
         let sg = if side == 0 { 1.0 } else { -1.0 };
         let (d, len) = da(side, i);
         for &(z, v) in &d[..len] {
-            kzz[row * l + z] += w * ks * v;
+            kzz[row * l + z] += wt * ks * v;
         }
         for cc in 0..nc {
-            kzq[row * nc + cc] -= w * ks * sg * c.geometry_m[i * nc + cc];
+            rhs[row * w + 1 + cc] -= wt * ks * sg * c.geometry_m[i * nc + cc];
         }
     };
     // Motor row.
@@ -462,10 +455,10 @@ pub(crate) fn assemble(
             sc.kzz[it * l + it] = 1.0;
         }
         MotorRow::Servo { residual_n_m, diag } => {
-            rz[it] = residual_n_m + n * rm * (sc.f[0] - sc.f[ns]);
+            sc.rhs[it * w] = residual_n_m + n * rm * (sc.f[0] - sc.f[ns]);
             sc.kzz[it * l + it] += diag;
-            add_row(&mut sc.kzz, &mut sc.kzq, it, n * rm, 0, 0);
-            add_row(&mut sc.kzz, &mut sc.kzq, it, -n * rm, 1, 0);
+            add_row(&mut sc.kzz, &mut sc.rhs, it, n * rm, 0, 0);
+            add_row(&mut sc.kzz, &mut sc.rhs, it, -n * rm, 1, 0);
         }
     }
     // Tensioner row.
@@ -473,9 +466,9 @@ pub(crate) fn assemble(
     match inp.constant_force_n {
         None => sc.kzz[ix * l + ix] = 1.0,
         Some(t) => {
-            rz[ix] = sc.f[0] + sc.f[ns] - 2.0 * t;
-            add_row(&mut sc.kzz, &mut sc.kzq, ix, 1.0, 0, 0);
-            add_row(&mut sc.kzz, &mut sc.kzq, ix, 1.0, 1, 0);
+            sc.rhs[ix * w] = sc.f[0] + sc.f[ns] - 2.0 * t;
+            add_row(&mut sc.kzz, &mut sc.rhs, ix, 1.0, 0, 0);
+            add_row(&mut sc.kzz, &mut sc.rhs, ix, 1.0, 1, 0);
         }
     }
     // Relay rows.
@@ -493,11 +486,11 @@ pub(crate) fn assemble(
             let w1 = two_h * dpsi - w0;
             let a1 = four_h2 * dpsi - 2.0 * two_h * w0 - a0;
             let t = c.friction.torque_n_m(r, fa + fb, w1);
-            rz[row] = jr * a1 + t.torque_n_m + r * (fa - fb);
+            sc.rhs[row * w] = jr * a1 + t.torque_n_m + r * (fa - fb);
             sc.kzz[row * l + row] += four_h2 * jr + two_h * t.d_rate_n_m_s;
             add_row(
                 &mut sc.kzz,
-                &mut sc.kzq,
+                &mut sc.rhs,
                 row,
                 r + t.d_tension_sum_m,
                 side,
@@ -505,7 +498,7 @@ pub(crate) fn assemble(
             );
             add_row(
                 &mut sc.kzz,
-                &mut sc.kzq,
+                &mut sc.rhs,
                 row,
                 -r + t.d_tension_sum_m,
                 side,
@@ -514,7 +507,7 @@ pub(crate) fn assemble(
             if sc.kzz[row * l + row] == 0.0 {
                 // No inertia, no friction and both spans slack: the pulley stays put.
                 sc.kzz[row * l + row] = 1.0;
-                rz[row] = 0.0;
+                sc.rhs[row * w] = 0.0;
             }
         }
     }
@@ -545,28 +538,18 @@ pub(crate) fn assemble(
     if !lu_in_place_banded(&mut sc.kzz, l, LOCAL_BANDWIDTH, &mut sc.perm) {
         return Assembly::Singular;
     }
-    lu_solve_banded(
-        &sc.kzz,
-        l,
-        LOCAL_BANDWIDTH,
-        &sc.perm,
-        &mut sc.y,
-        &mut sc.tmp,
-    );
-    for cc in 0..nc {
-        let col = &mut sc.big_y[cc * l..(cc + 1) * l];
-        for z in 0..l {
-            col[z] = sc.kzq[z * nc + cc];
-        }
-        lu_solve_banded(&sc.kzz, l, LOCAL_BANDWIDTH, &sc.perm, col, &mut sc.tmp);
-    }
+    lu_solve_banded_multi(&sc.kzz, l, LOCAL_BANDWIDTH, &sc.perm, &mut sc.rhs, w);
     for (a, &ca) in c.cols.iter().enumerate() {
         let kqz = &sc.kqz[a * l..(a + 1) * l];
-        rhs[ca] += kqz.iter().zip(&sc.y).map(|(u, v)| u * v).sum::<f64>();
+        let dot = |col: usize| -> f64 {
+            kqz.iter()
+                .enumerate()
+                .map(|(z, u)| u * sc.rhs[z * w + col])
+                .sum::<f64>()
+        };
+        rhs[ca] += dot(0);
         for (b, &cb) in c.cols.iter().enumerate() {
-            let yb = &sc.big_y[b * l..(b + 1) * l];
-            let s: f64 = kqz.iter().zip(yb).map(|(u, v)| u * v).sum();
-            kq[ca * nq + cb] -= s;
+            kq[ca * nq + cb] -= dot(1 + b);
         }
     }
     Assembly::Done
@@ -575,13 +558,13 @@ pub(crate) fn assemble(
 /// The local update `dz = -K_zz^-1 (r_z + K_zq dq)` after the joint update `dq`.
 #[inline(never)]
 pub(crate) fn local_update(c: &CompiledRelays, sc: &mut RelayScratch, dq: &[f64]) {
-    let l = c.unknowns();
-    for z in 0..l {
-        let mut s = sc.y[z];
-        for (cc, &col) in c.cols.iter().enumerate() {
-            s += sc.big_y[cc * l + z] * dq[col];
+    let w = c.cols.len() + 1;
+    for (dz, row) in sc.dz.iter_mut().zip(sc.rhs.chunks_exact(w)) {
+        let mut s = row[0];
+        for (&y, &col) in row[1..].iter().zip(&c.cols) {
+            s += y * dq[col];
         }
-        sc.dz[z] = -s;
+        *dz = -s;
     }
 }
 
@@ -801,6 +784,52 @@ pub(crate) fn lu_solve_banded(
         let row = &a[i * n + i + 1..i * n + hi + 1];
         let s: f64 = row.iter().zip(&b[i + 1..hi + 1]).map(|(u, x)| u * x).sum();
         b[i] = (b[i] - s) / a[i * n + i];
+    }
+}
+
+/// Solves `A X = B` in place for the `w` columns of the row-major `n x w` matrix `b`
+/// with the factor of [`lu_in_place_banded`] (same `p`); every column goes through
+/// the arithmetic of [`lu_solve_banded`].
+pub(crate) fn lu_solve_banded_multi(
+    a: &[f64],
+    n: usize,
+    p: usize,
+    perm: &[usize],
+    b: &mut [f64],
+    w: usize,
+) {
+    for k in 0..n {
+        let pk = perm[k];
+        if pk != k {
+            for c in 0..w {
+                b.swap(k * w + c, pk * w + c);
+            }
+        }
+        let (top, bottom) = b.split_at_mut((k + 1) * w);
+        let bk = &top[k * w..];
+        for (i, row) in (k + 1..=(k + p).min(n - 1)).zip(bottom.chunks_exact_mut(w)) {
+            let f = a[i * n + k];
+            for (x, u) in row.iter_mut().zip(bk) {
+                if *u != 0.0 {
+                    *x -= f * u;
+                }
+            }
+        }
+    }
+    for i in (0..n).rev() {
+        let hi = (i + 2 * p).min(n - 1);
+        let arow = &a[i * n + i + 1..i * n + hi + 1];
+        let d = a[i * n + i];
+        let (top, bottom) = b.split_at_mut((i + 1) * w);
+        let bi = &mut top[i * w..];
+        for (c, x) in bi.iter_mut().enumerate() {
+            let s: f64 = arow
+                .iter()
+                .zip(bottom.chunks_exact(w))
+                .map(|(u, row)| u * row[c])
+                .sum();
+            *x = (*x - s) / d;
+        }
     }
 }
 
