@@ -568,6 +568,9 @@ pub(crate) fn local_update(c: &CompiledRelays, sc: &mut RelayScratch, dq: &[f64]
     }
 }
 
+/// Relative tolerance on the Newton updates (angles, rad) of a step with relay friction.
+pub(crate) const NEWTON_TOLERANCE: f64 = 1e-10;
+
 /// Newton iterations of a step after which oscillating relay updates are damped.
 pub(crate) const DAMP_AFTER_ITERATIONS: u32 = 16;
 
@@ -587,6 +590,7 @@ pub(crate) fn apply_relay_update(
     state: &RelayState,
     h: f64,
     iteration: u32,
+    tol: f64,
 ) -> bool {
     let m = c.relays();
     let slip = c.friction.slip_rate_rad_s;
@@ -611,7 +615,7 @@ pub(crate) fn apply_relay_update(
             if c.friction.coefficient > 0.0 && w_old * w_new < 0.0 && w_new.abs() > slip {
                 new = psi0 + 0.5 * h * w0;
             }
-            if (new - old).abs() > 1e-12 * (1.0 + new.abs()) {
+            if (new - old).abs() > tol * (1.0 + new.abs()) {
                 small = false;
             }
             sc.psi1[k] = new;

@@ -802,6 +802,11 @@ impl DrivenArm {
         // Relay friction (stick-slip, spans going slack) may need the damped iterations
         // of `relay::apply_relay_update`.
         let max_iterations = if self.any_friction { 120 } else { 60 };
+        let tol = if self.any_friction {
+            relay::NEWTON_TOLERANCE
+        } else {
+            1e-12
+        };
         for _ in 0..max_iterations {
             iterations += 1;
             for j in 0..n {
@@ -940,16 +945,16 @@ impl DrivenArm {
             for j in 0..n {
                 let d = sc.rhs[j];
                 sc.q1[j] += d;
-                if d.abs() > 1e-12 * (1.0 + sc.q1[j].abs()) {
+                if d.abs() > tol * (1.0 + sc.q1[j].abs()) {
                     small = false;
                 }
             }
             for (p, pair) in self.pairs.iter().enumerate() {
                 if let (Some(c), Some(rs)) = (&pair.relays, sc.relay[p].as_mut()) {
-                    if !self.friction_pair_update(p, c, rs, &sc.rhs, &mut th1, &mut x1) {
+                    if !self.friction_pair_update(p, c, rs, &sc.rhs, &mut th1, &mut x1, tol) {
                         small = false;
                     }
-                    if !relay::apply_relay_update(c, rs, &st.relays[p], h, iterations) {
+                    if !relay::apply_relay_update(c, rs, &st.relays[p], h, iterations, tol) {
                         small = false;
                     }
                     continue;
@@ -1150,6 +1155,7 @@ impl DrivenArm {
         dq: &[f64],
         th1: &mut [f64],
         x1: &mut [f64],
+        tol: f64,
     ) -> bool {
         let pair = &self.pairs[p];
         let mut small = true;
@@ -1157,7 +1163,7 @@ impl DrivenArm {
         if matches!(pair.spec.motor.mode, MotorMode::Servo { .. }) {
             let d = rs.dz[c.iz_theta()];
             th1[p] += d;
-            if d.abs() > 1e-12 * (1.0 + th1[p].abs()) {
+            if d.abs() > tol * (1.0 + th1[p].abs()) {
                 small = false;
             }
         }
