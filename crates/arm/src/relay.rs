@@ -64,6 +64,10 @@ pub struct CompiledRelays {
     pub cols: Vec<usize>,
     /// `G` (spans x cols), m: span `i` of rope `+` shortens by `G_i . q`.
     pub geometry_m: Vec<f64>,
+    /// The non-zero entries `(index in cols, G_i[col])` of every row of `G`, span `i`
+    /// at `sparse_start[i]..sparse_start[i + 1]` (at most two per span).
+    sparse: Vec<(usize, f64)>,
+    sparse_start: Vec<usize>,
 }
 
 impl CompiledRelays {
@@ -94,6 +98,17 @@ impl CompiledRelays {
             geometry_m[(l + 1) * nc + col(r.joint)] += r.sign * r.radius_m;
         }
         geometry_m[m * nc + col(pair.joint)] += pair.joint_radius_m;
+        let mut sparse = Vec::new();
+        let mut sparse_start = vec![0];
+        for row in geometry_m.chunks_exact(nc) {
+            sparse.extend(
+                row.iter()
+                    .enumerate()
+                    .filter(|(_, g)| **g != 0.0)
+                    .map(|(a, g)| (a, *g)),
+            );
+            sparse_start.push(sparse.len());
+        }
         Self {
             friction,
             joints: route.iter().map(|r| r.joint).collect(),
@@ -102,6 +117,8 @@ impl CompiledRelays {
             span_length_m,
             cols,
             geometry_m,
+            sparse,
+            sparse_start,
         }
     }
 
@@ -142,14 +159,40 @@ impl CompiledRelays {
         }
     }
 
-    /// `G_i . q` of span `i`, m.
+    /// The non-zero entries `(index in cols, G_i[col])` of span `i`'s row of `G`.
+    fn span_geometry(&self, i: usize) -> &[(usize, f64)] {
+        &self.sparse[self.sparse_start[i]..self.sparse_start[i + 1]]
+    }
+
+    /// `G_i . q` of span `i`, m (the zero entries of `G` left out: same sum).
     fn gq(&self, i: usize, q: &[f64]) -> f64 {
-        let nc = self.cols.len();
-        self.cols
+        self.span_geometry(i)
             .iter()
-            .zip(&self.geometry_m[i * nc..(i + 1) * nc])
-            .map(|(&c, g)| g * q[c])
+            .map(|&(a, g)| g * q[self.cols[a]])
             .sum()
+    }
+
+    /// Derivative of the elongation of span `i` of rope `side` with respect to the
+    /// local unknowns (motor radius `rm`): at most four entries `(unknown, value)`.
+    fn span_local_derivative(&self, side: usize, i: usize, rm: f64) -> ([(usize, f64); 4], usize) {
+        let m = self.relays();
+        let sg = if side == 0 { 1.0 } else { -1.0 };
+        let mut out = [(0usize, 0.0f64); 4];
+        let mut len = 0;
+        if i == 0 {
+            out[0] = (self.iz_theta(), sg * rm);
+            out[1] = (self.iz_x(), 1.0);
+            len = 2;
+        }
+        if i >= 1 {
+            out[len] = (self.iz_psi(side, i - 1), -self.radius_m[i - 1]);
+            len += 1;
+        }
+        if i < m {
+            out[len] = (self.iz_psi(side, i), self.radius_m[i]);
+            len += 1;
+        }
+        (out, len)
     }
 }
 
@@ -278,6 +321,9 @@ pub(crate) struct RelayScratch {
     /// `[K_zz^-1 r_z | K_zz^-1 K_zq]`.
     rhs: Vec<f64>,
     perm: Vec<usize>,
+    /// Local derivatives of every span's elongation (index `side * spans + i`).
+    de: Vec<([(usize, f64); 4], usize)>,
+    tmp: Vec<f64>,
     /// Newton update of the local unknowns.
     pub dz: Vec<f64>,
     /// Last Newton update (undamped) of each relay angle, rad.
@@ -298,6 +344,8 @@ impl RelayScratch {
             kqz: vec![0.0; nc * l],
             rhs: vec![0.0; l * (nc + 1)],
             perm: vec![0; l],
+            de: vec![([(0, 0.0); 4], 0); s],
+            tmp: vec![0.0; nc + 1],
             dz: vec![0.0; l],
             prev_step: vec![0.0; 2 * c.relays()],
             damping: vec![1.0; 2 * c.relays()],
@@ -412,63 +460,53 @@ pub(crate) fn assemble(
     sc.kzz.fill(0.0);
     sc.rhs.fill(0.0);
     sc.kqz.fill(0.0);
-    // Derivative of span (side, i) elongation with respect to the local unknowns:
-    // at most four entries.
-    let da = |side: usize, i: usize| -> ([(usize, f64); 4], usize) {
-        let sg = if side == 0 { 1.0 } else { -1.0 };
-        let mut out = [(0usize, 0.0f64); 4];
-        let mut len = 0;
-        if i == 0 {
-            out[0] = (c.iz_theta(), sg * rm);
-            out[1] = (c.iz_x(), 1.0);
-            len = 2;
+    for side in 0..2 {
+        for i in 0..ns {
+            sc.de[side * ns + i] = c.span_local_derivative(side, i, rm);
         }
-        if i >= 1 {
-            out[len] = (c.iz_psi(side, i - 1), -c.radius_m[i - 1]);
-            len += 1;
-        }
-        if i < m {
-            out[len] = (c.iz_psi(side, i), c.radius_m[i]);
-            len += 1;
-        }
-        (out, len)
-    };
-    // Adds `wt * k_s * d e_s` to row `row` of the local block (`K_zz` and `K_zq`).
-    let add_row = |kzz: &mut [f64], rhs: &mut [f64], row: usize, wt: f64, side: usize, i: usize| {
-        let ks = sc.k[side * ns + i];
-        if ks == 0.0 || wt == 0.0 {
-            return;
-        }
-        let sg = if side == 0 { 1.0 } else { -1.0 };
-        let (d, len) = da(side, i);
-        for &(z, v) in &d[..len] {
-            kzz[row * l + z] += wt * ks * v;
-        }
-        for cc in 0..nc {
-            rhs[row * w + 1 + cc] -= wt * ks * sg * c.geometry_m[i * nc + cc];
-        }
-    };
+    }
+    let (kzz, brhs, kqz) = (&mut sc.kzz, &mut sc.rhs, &mut sc.kqz);
+    let (fs, ks, des) = (&sc.f, &sc.k, &sc.de);
+    // Adds `wt * k_s * d e_s` to row `row` of the local block (`K_zz` and `K_zq`); the
+    // zero entries of `G` are left out (they would add zeros).
+    let add_row =
+        |kzz: &mut [f64], brhs: &mut [f64], row: usize, wt: f64, side: usize, i: usize| {
+            let k = ks[side * ns + i];
+            if k == 0.0 || wt == 0.0 {
+                return;
+            }
+            let sg = if side == 0 { 1.0 } else { -1.0 };
+            let (d, len) = &des[side * ns + i];
+            let kr = &mut kzz[row * l..(row + 1) * l];
+            for &(z, v) in &d[..*len] {
+                kr[z] += wt * k * v;
+            }
+            let br = &mut brhs[row * w + 1..(row + 1) * w];
+            for &(cc, g) in c.span_geometry(i) {
+                br[cc] -= wt * k * sg * g;
+            }
+        };
     // Motor row.
     let it = c.iz_theta();
     match inp.motor {
         MotorRow::Fixed => {
-            sc.kzz[it * l + it] = 1.0;
+            kzz[it * l + it] = 1.0;
         }
         MotorRow::Servo { residual_n_m, diag } => {
-            sc.rhs[it * w] = residual_n_m + n * rm * (sc.f[0] - sc.f[ns]);
-            sc.kzz[it * l + it] += diag;
-            add_row(&mut sc.kzz, &mut sc.rhs, it, n * rm, 0, 0);
-            add_row(&mut sc.kzz, &mut sc.rhs, it, -n * rm, 1, 0);
+            brhs[it * w] = residual_n_m + n * rm * (fs[0] - fs[ns]);
+            kzz[it * l + it] += diag;
+            add_row(kzz, brhs, it, n * rm, 0, 0);
+            add_row(kzz, brhs, it, -n * rm, 1, 0);
         }
     }
     // Tensioner row.
     let ix = c.iz_x();
     match inp.constant_force_n {
-        None => sc.kzz[ix * l + ix] = 1.0,
+        None => kzz[ix * l + ix] = 1.0,
         Some(t) => {
-            sc.rhs[ix * w] = sc.f[0] + sc.f[ns] - 2.0 * t;
-            add_row(&mut sc.kzz, &mut sc.rhs, ix, 1.0, 0, 0);
-            add_row(&mut sc.kzz, &mut sc.rhs, ix, 1.0, 1, 0);
+            brhs[ix * w] = fs[0] + fs[ns] - 2.0 * t;
+            add_row(kzz, brhs, ix, 1.0, 0, 0);
+            add_row(kzz, brhs, ix, 1.0, 1, 0);
         }
     }
     // Relay rows.
@@ -478,7 +516,7 @@ pub(crate) fn assemble(
         for rl in 0..m {
             let row = c.iz_psi(side, rl);
             let r = c.radius_m[rl];
-            let (fa, fb) = (sc.f[side * ns + rl], sc.f[side * ns + rl + 1]);
+            let (fa, fb) = (fs[side * ns + rl], fs[side * ns + rl + 1]);
             let psi0 = inp.state.angle_rad[rl][side];
             let w0 = inp.state.rate_rad_s[rl][side];
             let a0 = inp.state.accel_rad_s2[rl][side];
@@ -486,70 +524,57 @@ pub(crate) fn assemble(
             let w1 = two_h * dpsi - w0;
             let a1 = four_h2 * dpsi - 2.0 * two_h * w0 - a0;
             let t = c.friction.torque_n_m(r, fa + fb, w1);
-            sc.rhs[row * w] = jr * a1 + t.torque_n_m + r * (fa - fb);
-            sc.kzz[row * l + row] += four_h2 * jr + two_h * t.d_rate_n_m_s;
-            add_row(
-                &mut sc.kzz,
-                &mut sc.rhs,
-                row,
-                r + t.d_tension_sum_m,
-                side,
-                rl,
-            );
-            add_row(
-                &mut sc.kzz,
-                &mut sc.rhs,
-                row,
-                -r + t.d_tension_sum_m,
-                side,
-                rl + 1,
-            );
-            if sc.kzz[row * l + row] == 0.0 {
+            brhs[row * w] = jr * a1 + t.torque_n_m + r * (fa - fb);
+            kzz[row * l + row] += four_h2 * jr + two_h * t.d_rate_n_m_s;
+            add_row(kzz, brhs, row, r + t.d_tension_sum_m, side, rl);
+            add_row(kzz, brhs, row, -r + t.d_tension_sum_m, side, rl + 1);
+            if kzz[row * l + row] == 0.0 {
                 // No inertia, no friction and both spans slack: the pulley stays put.
-                sc.kzz[row * l + row] = 1.0;
-                sc.rhs[row * w] = 0.0;
+                kzz[row * l + row] = 1.0;
+                brhs[row * w] = 0.0;
             }
         }
     }
-    // Joint rows: rhs = -r_q gets the rope torques, kq the span stiffnesses.
+    // Joint rows: rhs = -r_q gets the rope torques, kq the span stiffnesses (the zero
+    // entries of `G` left out).
     for side in 0..2 {
         let sg = if side == 0 { 1.0 } else { -1.0 };
         for i in 0..ns {
-            let (f, ks) = (sc.f[side * ns + i], sc.k[side * ns + i]);
-            let g = &c.geometry_m[i * nc..(i + 1) * nc];
-            for (a, &ca) in c.cols.iter().enumerate() {
-                if g[a] == 0.0 {
+            let (f, k) = (fs[side * ns + i], ks[side * ns + i]);
+            let geo = c.span_geometry(i);
+            let (d, len) = &des[side * ns + i];
+            for &(a, ga) in geo {
+                let ca = c.cols[a];
+                rhs[ca] += n * sg * f * ga;
+                if k == 0.0 {
                     continue;
                 }
-                rhs[ca] += n * sg * f * g[a];
-                if ks == 0.0 {
-                    continue;
+                for &(b, gb) in geo {
+                    kq[ca * nq + c.cols[b]] += n * k * ga * gb;
                 }
-                for (b, &cb) in c.cols.iter().enumerate() {
-                    kq[ca * nq + cb] += n * ks * g[a] * g[b];
-                }
-                let (d, len) = da(side, i);
-                for &(z, v) in &d[..len] {
-                    sc.kqz[a * l + z] -= n * ks * sg * g[a] * v;
+                let kr = &mut kqz[a * l..(a + 1) * l];
+                for &(z, v) in &d[..*len] {
+                    kr[z] -= n * k * sg * ga * v;
                 }
             }
         }
     }
-    if !lu_in_place_banded(&mut sc.kzz, l, LOCAL_BANDWIDTH, &mut sc.perm) {
+    if !lu_in_place_banded(kzz, l, LOCAL_BANDWIDTH, &mut sc.perm) {
         return Assembly::Singular;
     }
-    lu_solve_banded_multi(&sc.kzz, l, LOCAL_BANDWIDTH, &sc.perm, &mut sc.rhs, w);
+    lu_solve_banded_multi(kzz, l, LOCAL_BANDWIDTH, &sc.perm, brhs, w);
+    // K_qz [y | Y], every column summed over the unknowns in order.
+    let acc = &mut sc.tmp[..w];
     for (a, &ca) in c.cols.iter().enumerate() {
-        let kqz = &sc.kqz[a * l..(a + 1) * l];
-        let dot = |col: usize| -> f64 {
-            kqz.iter()
-                .enumerate()
-                .map(|(z, u)| u * sc.rhs[z * w + col])
-                .sum::<f64>()
-        };
-        rhs[ca] += dot(0);
+        acc.fill(0.0);
+        for (&u, yrow) in kqz[a * l..(a + 1) * l].iter().zip(brhs.chunks_exact(w)) {
+            for (s, y) in acc.iter_mut().zip(yrow) {
+                *s += u * y;
+            }
+        }
+        rhs[ca] += acc[0];
         for (b, &cb) in c.cols.iter().enumerate() {
-            kq[ca * nq + cb] -= dot(1 + b);
+            kq[ca * nq + cb] -= acc[1 + b];
         }
     }
     Assembly::Done
