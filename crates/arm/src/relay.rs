@@ -41,7 +41,7 @@
 //! non-symmetric, so it is eliminated by a small LU (partial pivoting) and the
 //! `n x n` joint matrix of an arm with friction is solved by LU instead of Cholesky.
 
-use longreach_drive::RelayFriction;
+use longreach_drive::{RelayFriction, RelayTorque};
 use longreach_rope::{PreparedStep, RopeState, RopeStepper};
 
 use crate::spec::ArmSpec;
@@ -324,6 +324,11 @@ pub(crate) struct RelayScratch {
     /// Local derivatives of every span's elongation (index `side * spans + i`).
     de: Vec<([(usize, f64); 4], usize)>,
     tmp: Vec<f64>,
+    /// Relay rows pinned at the last assembly (`psi` held: no inertia, no friction,
+    /// both spans slack).
+    pinned: Vec<bool>,
+    /// `K_zz^-1 r_z` of a chord iteration.
+    y: Vec<f64>,
     /// Newton update of the local unknowns.
     pub dz: Vec<f64>,
     /// Last Newton update (undamped) of each relay angle, rad.
@@ -346,6 +351,8 @@ impl RelayScratch {
             perm: vec![0; l],
             de: vec![([(0, 0.0); 4], 0); s],
             tmp: vec![0.0; nc + 1],
+            pinned: vec![false; l],
+            y: vec![0.0; l],
             dz: vec![0.0; l],
             prev_step: vec![0.0; 2 * c.relays()],
             damping: vec![1.0; 2 * c.relays()],
@@ -421,6 +428,129 @@ pub(crate) fn span_tension(
     (f, k * c.inv_span_length[i], strain)
 }
 
+/// Tensions and stiffnesses of every span at the trial state into `sc.f`, `sc.k`;
+/// false when both motor-side spans are slack under a constant-force tensioner (`x_m`
+/// then moved to take up the slack: redo the iteration).
+fn span_tensions(
+    c: &CompiledRelays,
+    stepper: &RopeStepper,
+    sc: &mut RelayScratch,
+    inp: &Local<'_>,
+    x_m: &mut f64,
+) -> bool {
+    let ns = c.spans();
+    for side in 0..2 {
+        for i in 0..ns {
+            let (f, k, _) = span_tension(c, stepper, inp, *x_m, &sc.psi1, &sc.prep, side, i);
+            sc.f[side * ns + i] = f;
+            sc.k[side * ns + i] = k;
+        }
+    }
+    if inp.constant_force_n.is_some() && sc.k[0] + sc.k[ns] == 0.0 {
+        // Both motor-side spans slack: the carriage takes up the slack first.
+        let need = |side: usize| {
+            let e = elongation(c, inp, *x_m, &sc.psi1, side, 0) - *x_m;
+            sc.prep[side * ns].slack_strain() * c.span_length_m[0] - e
+        };
+        *x_m = need(0).min(need(1)) + 1e-12 * c.span_length_m.iter().sum::<f64>();
+        return false;
+    }
+    true
+}
+
+/// Residual of the equation of relay `rl` of rope `side` (`J a1 + tau_f + r (f_l -
+/// f_{l+1})`) and its friction torque, at the tensions in `fs`.
+fn relay_residual(
+    c: &CompiledRelays,
+    inp: &Local<'_>,
+    psi1: &[f64],
+    fs: &[f64],
+    side: usize,
+    rl: usize,
+) -> (f64, RelayTorque) {
+    let (m, ns) = (c.relays(), c.spans());
+    let h = inp.h;
+    let (two_h, four_h2) = (2.0 / h, 4.0 / (h * h));
+    let r = c.radius_m[rl];
+    let (fa, fb) = (fs[side * ns + rl], fs[side * ns + rl + 1]);
+    let psi0 = inp.state.angle_rad[rl][side];
+    let w0 = inp.state.rate_rad_s[rl][side];
+    let a0 = inp.state.accel_rad_s2[rl][side];
+    let dpsi = psi1[side * m + rl] - psi0;
+    let w1 = two_h * dpsi - w0;
+    let a1 = four_h2 * dpsi - 2.0 * two_h * w0 - a0;
+    let t = c.friction.torque_n_m(r, fa + fb, w1);
+    (
+        c.friction.inertia_kg_m2 * a1 + t.torque_n_m + r * (fa - fb),
+        t,
+    )
+}
+
+/// The chord iteration of [`assemble`]: the local block's factor, `K_zz^-1 K_zq` and
+/// `K_qz` are kept from the last call of [`assemble`] (the joint matrix likewise by the
+/// caller); only the residuals are evaluated at the trial state: `r_z` is solved with
+/// the kept factor and the pair's part of `-r_q` and of its Schur complement added to
+/// `rhs`.
+#[inline(never)]
+pub(crate) fn assemble_residual(
+    c: &CompiledRelays,
+    stepper: &RopeStepper,
+    sc: &mut RelayScratch,
+    inp: &Local<'_>,
+    x_m: &mut f64,
+    rhs: &mut [f64],
+) -> Assembly {
+    let m = c.relays();
+    let ns = c.spans();
+    let l = c.unknowns();
+    let w = c.cols.len() + 1;
+    let (n, rm) = (inp.n, inp.motor_radius_m);
+    if !span_tensions(c, stepper, sc, inp, x_m) {
+        return Assembly::Retry;
+    }
+    let fs = &sc.f;
+    let y = &mut sc.y;
+    y.fill(0.0);
+    if let MotorRow::Servo { residual_n_m, .. } = inp.motor {
+        y[c.iz_theta()] = residual_n_m + n * rm * (fs[0] - fs[ns]);
+    }
+    if let Some(t) = inp.constant_force_n {
+        y[c.iz_x()] = fs[0] + fs[ns] - 2.0 * t;
+    }
+    for side in 0..2 {
+        for rl in 0..m {
+            let row = c.iz_psi(side, rl);
+            y[row] = if sc.pinned[row] {
+                0.0
+            } else {
+                relay_residual(c, inp, &sc.psi1, fs, side, rl).0
+            };
+        }
+    }
+    for side in 0..2 {
+        let sg = if side == 0 { 1.0 } else { -1.0 };
+        for i in 0..ns {
+            let f = fs[side * ns + i];
+            for &(a, ga) in c.span_geometry(i) {
+                rhs[c.cols[a]] += n * sg * f * ga;
+            }
+        }
+    }
+    lu_solve_banded(&sc.kzz, l, LOCAL_BANDWIDTH, &sc.perm, y, &mut []);
+    for (z, &v) in y.iter().enumerate() {
+        sc.rhs[z * w] = v;
+    }
+    for (a, &ca) in c.cols.iter().enumerate() {
+        let s: f64 = sc.kqz[a * l..(a + 1) * l]
+            .iter()
+            .zip(y.iter())
+            .map(|(u, v)| u * v)
+            .sum();
+        rhs[ca] += s;
+    }
+    Assembly::Done
+}
+
 /// Adds the pair's contributions (Schur complement of its local unknowns) to the joint
 /// matrix `kq` (`nq x nq`, row-major) and right-hand side `rhs` (`-r_q`); `x_m` is
 /// moved when the carriage must take up slack.
@@ -440,20 +570,7 @@ pub(crate) fn assemble(
     let l = c.unknowns();
     let nc = c.cols.len();
     let (h, n, rm) = (inp.h, inp.n, inp.motor_radius_m);
-    for side in 0..2 {
-        for i in 0..ns {
-            let (f, k, _) = span_tension(c, stepper, inp, *x_m, &sc.psi1, &sc.prep, side, i);
-            sc.f[side * ns + i] = f;
-            sc.k[side * ns + i] = k;
-        }
-    }
-    if inp.constant_force_n.is_some() && sc.k[0] + sc.k[ns] == 0.0 {
-        // Both motor-side spans slack: the carriage takes up the slack first.
-        let need = |side: usize| {
-            let e = elongation(c, inp, *x_m, &sc.psi1, side, 0) - *x_m;
-            sc.prep[side * ns].slack_strain() * c.span_length_m[0] - e
-        };
-        *x_m = need(0).min(need(1)) + 1e-12 * c.span_length_m.iter().sum::<f64>();
+    if !span_tensions(c, stepper, sc, inp, x_m) {
         return Assembly::Retry;
     }
     let w = nc + 1;
@@ -516,19 +633,13 @@ pub(crate) fn assemble(
         for rl in 0..m {
             let row = c.iz_psi(side, rl);
             let r = c.radius_m[rl];
-            let (fa, fb) = (fs[side * ns + rl], fs[side * ns + rl + 1]);
-            let psi0 = inp.state.angle_rad[rl][side];
-            let w0 = inp.state.rate_rad_s[rl][side];
-            let a0 = inp.state.accel_rad_s2[rl][side];
-            let dpsi = sc.psi1[side * m + rl] - psi0;
-            let w1 = two_h * dpsi - w0;
-            let a1 = four_h2 * dpsi - 2.0 * two_h * w0 - a0;
-            let t = c.friction.torque_n_m(r, fa + fb, w1);
-            brhs[row * w] = jr * a1 + t.torque_n_m + r * (fa - fb);
+            let (res, t) = relay_residual(c, inp, &sc.psi1, fs, side, rl);
+            brhs[row * w] = res;
             kzz[row * l + row] += four_h2 * jr + two_h * t.d_rate_n_m_s;
             add_row(kzz, brhs, row, r + t.d_tension_sum_m, side, rl);
             add_row(kzz, brhs, row, -r + t.d_tension_sum_m, side, rl + 1);
-            if kzz[row * l + row] == 0.0 {
+            sc.pinned[row] = kzz[row * l + row] == 0.0;
+            if sc.pinned[row] {
                 // No inertia, no friction and both spans slack: the pulley stays put.
                 kzz[row * l + row] = 1.0;
                 brhs[row * w] = 0.0;
@@ -591,6 +702,20 @@ pub(crate) fn local_update(c: &CompiledRelays, sc: &mut RelayScratch, dq: &[f64]
         }
         *dz = -s;
     }
+}
+
+/// The largest local update `dz` (motor angle and relay angles, before the relay
+/// safeguards) in tolerances, `|dz| / (tol (1 + |z|))`.
+pub(crate) fn largest_update(c: &CompiledRelays, sc: &RelayScratch, tol: f64) -> f64 {
+    let m = c.relays();
+    let mut worst = 0.0f64;
+    for side in 0..2 {
+        for rl in 0..m {
+            let d = sc.dz[c.iz_psi(side, rl)];
+            worst = worst.max(d.abs() / (tol * (1.0 + sc.psi1[side * m + rl].abs())));
+        }
+    }
+    worst.max(sc.dz[c.iz_theta()].abs() / tol)
 }
 
 /// Relative tolerance on the Newton updates (angles, rad) of a step with relay friction.

@@ -807,6 +807,11 @@ impl DrivenArm {
         } else {
             1e-12
         };
+        // Chord iterations (Newton matrix kept from the last assembly) need every pair
+        // to go through `relay::assemble`.
+        let mut chord_allowed = self.any_friction && self.pairs.iter().all(|p| p.relays.is_some());
+        let mut refresh = true;
+        let mut last_update = f64::INFINITY;
         for _ in 0..max_iterations {
             iterations += 1;
             for j in 0..n {
@@ -829,7 +834,9 @@ impl DrivenArm {
             for j in 0..n {
                 sc.rhs[j] = -(sc.tau[j] + self.damping[j] * sc.v1[j]);
             }
-            sc.kq.copy_from_slice(&sc.mbase);
+            if refresh {
+                sc.kq.copy_from_slice(&sc.mbase);
+            }
             let mut retry = false;
             let mut singular = false;
             for (p, pair) in self.pairs.iter().enumerate() {
@@ -845,6 +852,7 @@ impl DrivenArm {
                         &ref_rate,
                         &ff,
                         &mut torque,
+                        refresh,
                     ) {
                         Assembly::Done => {}
                         Assembly::Retry => retry = true,
@@ -917,9 +925,12 @@ impl DrivenArm {
                 sc.local[p] = [b11, b12, b21, b22, w[0], w[1], r0, r1];
             }
             if retry {
+                refresh = true;
                 continue;
             }
-            let factored = if self.any_friction {
+            let factored = if !refresh {
+                true
+            } else if self.any_friction {
                 !singular && relay::lu_in_place(&mut sc.kq, n, &mut sc.perm)
             } else {
                 cholesky_in_place(&mut sc.kq, n)
@@ -942,18 +953,22 @@ impl DrivenArm {
                 cholesky_solve(&sc.kq, n, &mut sc.rhs);
             }
             let mut small = true;
+            // Largest joint update relative to the tolerance (chord control).
+            let mut update = 0.0f64;
             for j in 0..n {
                 let d = sc.rhs[j];
                 sc.q1[j] += d;
                 if d.abs() > tol * (1.0 + sc.q1[j].abs()) {
                     small = false;
                 }
+                update = update.max(d.abs() / (tol * (1.0 + sc.q1[j].abs())));
             }
             for (p, pair) in self.pairs.iter().enumerate() {
                 if let (Some(c), Some(rs)) = (&pair.relays, sc.relay[p].as_mut()) {
                     if !self.friction_pair_update(p, c, rs, &sc.rhs, &mut th1, &mut x1, tol) {
                         small = false;
                     }
+                    update = update.max(relay::largest_update(c, rs, tol));
                     if !relay::apply_relay_update(c, rs, &st.relays[p], h, iterations, tol) {
                         small = false;
                     }
@@ -1000,12 +1015,24 @@ impl DrivenArm {
                 }
                 if !small {
                     flips += 1;
+                    // The servo rows changed: a new Newton matrix.
+                    update = f64::INFINITY;
                 }
             }
             if small {
                 converged = true;
                 break;
             }
+            // The next iteration keeps the Newton matrix (chord) while the updates
+            // shrink fast; a fresh one otherwise.
+            let was_refresh = refresh;
+            let contracted = update < CHORD_CONTRACTION * last_update;
+            if !was_refresh && !contracted {
+                // A chord update that did not shrink: full Newton for the rest of the step.
+                chord_allowed = false;
+            }
+            refresh = !(chord_allowed && update < CHORD_BELOW && (was_refresh || contracted));
+            last_update = update;
         }
         if !converged {
             (sc.ff, sc.ref_rate, sc.th1, sc.x1, sc.torque) = (ff, ref_rate, th1, x1, torque);
@@ -1103,6 +1130,7 @@ impl DrivenArm {
         ref_rate: &[f64],
         ff: &[f64],
         torque: &mut [f64],
+        refresh: bool,
     ) -> Assembly {
         let n = self.spec.ndofs();
         let h = self.dt_s;
@@ -1130,6 +1158,9 @@ impl DrivenArm {
             state: &st.relays[p],
         };
         match sc.relay[p].as_mut() {
+            Some(rs) if !refresh => {
+                relay::assemble_residual(c, &pair.stepper, rs, &inp, &mut x1[p], &mut sc.rhs)
+            }
             Some(rs) => relay::assemble(
                 c,
                 &pair.stepper,
@@ -1205,6 +1236,13 @@ impl DrivenArm {
         }
     }
 }
+
+/// Chord iterations (the Newton matrix of the step kept) only once every update is
+/// below this many tolerances...
+const CHORD_BELOW: f64 = 1e4;
+
+/// ...and while each chord update is below this fraction of the previous update.
+const CHORD_CONTRACTION: f64 = 0.25;
 
 /// One servo's contribution to the implicit step ([`DrivenArm::servo_row`]).
 #[derive(Debug, Clone, Copy)]
