@@ -860,7 +860,8 @@ pub(crate) fn begin_step(
 const LOCAL_BANDWIDTH: usize = 2;
 
 /// LU factorisation with partial pivoting of the row-major `n x n` matrix `a` in place
-/// (unit lower factor below the diagonal); false when singular or not finite.
+/// (unit lower factor below the diagonal, the reciprocals of the pivots on it: the
+/// solves multiply); false when singular or not finite.
 #[inline(never)]
 pub(crate) fn lu_in_place(a: &mut [f64], n: usize, perm: &mut [usize]) -> bool {
     lu_in_place_banded(a, n, n.saturating_sub(1), perm)
@@ -899,9 +900,10 @@ pub(crate) fn lu_in_place_banded(a: &mut [f64], n: usize, p: usize, perm: &mut [
                 a.swap(k * n + j, piv * n + j);
             }
         }
-        let d = a[k * n + k];
+        let inv = 1.0 / a[k * n + k];
+        a[k * n + k] = inv;
         for i in k + 1..=last_row {
-            let f = a[i * n + k] / d;
+            let f = a[i * n + k] * inv;
             a[i * n + k] = f;
             if f != 0.0 {
                 let (top, bottom) = a.split_at_mut(i * n);
@@ -937,7 +939,7 @@ pub(crate) fn lu_solve_banded(
         let hi = (i + 2 * p).min(n - 1);
         let row = &a[i * n + i + 1..i * n + hi + 1];
         let s: f64 = row.iter().zip(&b[i + 1..hi + 1]).map(|(u, x)| u * x).sum();
-        b[i] = (b[i] - s) / a[i * n + i];
+        b[i] = (b[i] - s) * a[i * n + i];
     }
 }
 
@@ -973,7 +975,7 @@ pub(crate) fn lu_solve_banded_multi(
     for i in (0..n).rev() {
         let hi = (i + 2 * p).min(n - 1);
         let arow = &a[i * n + i + 1..i * n + hi + 1];
-        let d = a[i * n + i];
+        let inv = a[i * n + i];
         let (top, bottom) = b.split_at_mut((i + 1) * w);
         let bi = &mut top[i * w..];
         for (c, x) in bi.iter_mut().enumerate() {
@@ -982,7 +984,7 @@ pub(crate) fn lu_solve_banded_multi(
                 .zip(bottom.chunks_exact(w))
                 .map(|(u, row)| u * row[c])
                 .sum();
-            *x = (*x - s) / d;
+            *x = (*x - s) * inv;
         }
     }
 }
