@@ -1,6 +1,8 @@
-//! Cost of `--rerun`: the same arm run with and without logging to an `.rrd` file at
-//! the default 60 frames per simulated second (target: < 20% slower), and the rig's
-//! stepped sine with and without recording.
+//! Cost of `--rerun`: the same arm run (the scenario's 10 s, and 2 s) with and without
+//! logging to an `.rrd` file at the default 60 frames per simulated second, whole
+//! recording from start to closed file (target: < 20% slower); the fixed part of a
+//! recording (open + close, static scene + blueprint); and the rig's stepped sine
+//! with and without recording.
 //!
 //! Run: `cargo bench --bench rerun`.
 
@@ -46,6 +48,44 @@ fn bench_arm(c: &mut Criterion) {
             let target = Target::Save(Some(dir.path().join("arm.rrd")));
             let rec = Recorder::start("bench", &target, dir.path(), DEFAULT_HZ).expect("rec");
             let n = arm_run(&sc, 2.0, &rec);
+            rec.finish();
+            black_box(n)
+        })
+    });
+    g.finish();
+
+    // Where the cost of a recording goes: an empty recording (open + close), the
+    // static scene and blueprint alone, and a 10 s run where the fixed part amortises.
+    let mut g = c.benchmark_group("rerun_arm_parts");
+    g.sample_size(20);
+    g.bench_function("open_close", |b| {
+        b.iter(|| {
+            let target = Target::Save(Some(dir.path().join("empty.rrd")));
+            let rec = Recorder::start("bench", &target, dir.path(), DEFAULT_HZ).expect("rec");
+            black_box(rec.finish())
+        })
+    });
+    g.bench_function("static_scene", |b| {
+        b.iter(|| {
+            let target = Target::Save(Some(dir.path().join("static.rrd")));
+            let rec = Recorder::start("bench", &target, dir.path(), DEFAULT_HZ).expect("rec");
+            let viewer = ArmLogger::new(&rec, &sc.arm);
+            let n = viewer.finish();
+            black_box((n, rec.finish()))
+        })
+    });
+    g.finish();
+
+    let mut g = c.benchmark_group("rerun_arm_10s");
+    g.sample_size(10);
+    g.bench_function("off", |b| {
+        b.iter(|| black_box(arm_run(&sc, 10.0, &Recorder::off())))
+    });
+    g.bench_function("save_60hz", |b| {
+        b.iter(|| {
+            let target = Target::Save(Some(dir.path().join("arm10.rrd")));
+            let rec = Recorder::start("bench", &target, dir.path(), DEFAULT_HZ).expect("rec");
+            let n = arm_run(&sc, 10.0, &rec);
             rec.finish();
             black_box(n)
         })

@@ -70,13 +70,33 @@ fn entity<'a>(summary: &'a Value, path: &str) -> &'a Value {
     e
 }
 
+/// `(time, value)` of a single series.
 fn scalars(e: &Value) -> Vec<(f64, f64)> {
+    instance(e, 0)
+}
+
+/// `(time, value)` of instance `i` of a group of series.
+fn instance(e: &Value, i: usize) -> Vec<(f64, f64)> {
     e["scalars"]
         .as_array()
         .unwrap()
         .iter()
-        .map(|tv| (tv[0].as_f64().unwrap(), tv[1].as_f64().unwrap_or(f64::NAN)))
+        .map(|tv| {
+            (
+                tv[0].as_f64().unwrap(),
+                tv[1][i].as_f64().unwrap_or(f64::NAN),
+            )
+        })
         .collect()
+}
+
+/// Instance of the series named `name` in a group.
+fn named(e: &Value, name: &str) -> usize {
+    let names = e["names"].as_array().unwrap();
+    names
+        .iter()
+        .position(|n| n == name)
+        .unwrap_or_else(|| panic!("no series {name} in {names:?}"))
 }
 
 #[test]
@@ -120,12 +140,21 @@ fn an_arm_run_is_recorded_with_every_entity_and_logging_changes_nothing() {
     );
     // 10 s at 20 Hz: t = 0 plus 200 frames.
     let frames = 201;
-    let q5 = entity(&s, "/series/joints/j5/q_rad");
-    assert_eq!(q5["rows"], frames);
-    assert_eq!(entity(&s, "/series/tensions/j1/pos_n")["rows"], frames);
-    assert_eq!(entity(&s, "/series/motors/j3/torque_n_m")["rows"], frames);
+    let joints = entity(&s, "/series/joints/angle_rad");
+    assert_eq!(joints["rows"], frames);
+    assert_eq!(
+        joints["names"].as_array().unwrap().len(),
+        10,
+        "q and ref of 5 joints"
+    );
+    let tensions = entity(&s, "/series/tensions/tension_n");
+    assert_eq!(tensions["rows"], frames);
+    named(tensions, "j1 +");
+    named(tensions, "j5 -");
+    assert_eq!(entity(&s, "/series/motors/torque_n_m")["rows"], frames);
+    assert_eq!(entity(&s, "/series/motors/angle_rad")["rows"], frames);
     assert_eq!(entity(&s, "/series/tip/error_m")["rows"], frames);
-    assert_eq!(entity(&s, "/world/ropes/j5")["rows"], frames);
+    assert_eq!(entity(&s, "/world/ropes")["rows"], frames);
     assert_eq!(entity(&s, "/world/arm/link5")["rows"], frames);
     assert!(entity(&s, "/world/arm/link5")["components"]
         .as_array()
@@ -142,7 +171,7 @@ fn an_arm_run_is_recorded_with_every_entity_and_logging_changes_nothing() {
     let rows: Vec<Vec<f64>> = lines
         .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
         .collect();
-    let rec = scalars(q5);
+    let rec = instance(joints, named(joints, "j5 q"));
     let mut checked = 0;
     for (t, v) in &rec {
         if let Some(r) = rows.iter().find(|r| (r[0] - t).abs() < 1e-9) {
@@ -156,7 +185,7 @@ fn an_arm_run_is_recorded_with_every_entity_and_logging_changes_nothing() {
     }
     assert!(checked >= 200, "only {checked} frames matched CSV rows");
     // The distal step moves j5: its recorded angle ends near the command.
-    let qref = scalars(entity(&s, "/series/joints/j5/q_ref_rad"));
+    let qref = instance(joints, named(joints, "j5 ref"));
     let (last_q, last_ref) = (rec.last().unwrap().1, qref.last().unwrap().1);
     assert!(
         (last_q - last_ref).abs() < 0.01 * last_ref.abs().max(0.01),

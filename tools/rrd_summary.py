@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Reads a Rerun recording back with Rerun's own Python SDK (rerun-sdk 0.36.3) and
-prints, as JSON, what every entity holds: row count, timelines, components, and for
-scalar series the (time, value) pairs. Used by tests/rerun_cli.rs; also handy to
+prints, as JSON, what every entity holds: row count (temporal rows; static ones
+apart), timelines, components, and for
+scalar series the (time, [values]) pairs (one value per instance of a group of
+series) and the series names. Used by tests/rerun_cli.rs; also handy to
 check a recording by hand:
 
     python3 tools/rrd_summary.py run.rrd | python3 -m json.tool | less
@@ -25,9 +27,13 @@ def main(path):
         names = rb.schema.names
         ent = out["entities"].setdefault(
             chunk.entity_path,
-            {"rows": 0, "static": chunk.is_static, "timelines": [], "components": [], "scalars": []},
+            {"rows": 0, "static_rows": 0, "static": False, "timelines": [], "components": [], "scalars": [], "names": []},
         )
-        ent["rows"] += chunk.num_rows
+        if chunk.is_static:
+            ent["static"] = True
+            ent["static_rows"] += chunk.num_rows
+        else:
+            ent["rows"] += chunk.num_rows
         for tl in chunk.timeline_names:
             if tl not in ent["timelines"]:
                 ent["timelines"].append(tl)
@@ -41,7 +47,10 @@ def main(path):
             times = rb.column(index).to_pylist()
             values = rb.column("Scalars:scalars").to_pylist()
             for t, v in zip(times, values):
-                ent["scalars"].append([seconds(t), v[0] if v else None])
+                ent["scalars"].append([seconds(t), v if v else []])
+        if "SeriesLines:names" in names:
+            for v in rb.column("SeriesLines:names").to_pylist():
+                ent["names"] = v or []
     for ent in out["entities"].values():
         ent["scalars"].sort(key=lambda tv: tv[0])
     json.dump(out, sys.stdout)

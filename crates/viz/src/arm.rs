@@ -4,17 +4,21 @@
 //! Entity paths (see docs/rerun.md):
 //!
 //! ```text
-//! /world                                   view coordinates (right-handed, z up)
-//! /world/arm/<link>                        pose of every moving link (sim_time)
-//! /world/arm/<link>/visual_<i>             its URDF visual geometry (static)
-//! /world/arm/<link>/pulleys                joint and relay pulleys on its joint axis (static)
-//! /world/motors                            motor pulleys at the base (static)
-//! /world/ropes/<joint>                     the pair's + and - ropes, a strip per span, coloured by tension
-//! /series/joints/<joint>/{q_rad,q_ref_rad} joint and command angles
-//! /series/motors/<joint>/{angle_rad,ref_rad,torque_n_m}  motor angle, reference, servo torque
-//! /series/tensions/<joint>/{pos_n,neg_n}   rope tensions (one rope of the parallel ones)
-//! /series/tip/error_m                      distance of the tip from where the commands put it
+//! /world                        view coordinates (right-handed, z up)
+//! /world/arm/<link>             pose of every moving link (sim_time)
+//! /world/arm/<link>/visual_<i>  its URDF visual geometry (static)
+//! /world/arm/<link>/pulleys     joint and relay pulleys on its joint axis (static)
+//! /world/motors                 motor pulleys at the base (static)
+//! /world/ropes                  every rope, a strip per span, coloured by tension
+//! /series/joints/angle_rad      "<joint> q" then "<joint> ref" for every joint
+//! /series/motors/angle_rad      "<joint> motor" then "<joint> motor ref" for every pair
+//! /series/motors/torque_n_m     servo torque of every pair, named by its joint
+//! /series/tensions/tension_n    "<joint> +" then "<joint> -" (one rope of the parallel ones)
+//! /series/tip/error_m           distance of the tip from where the commands put it
 //! ```
+//!
+//! Each `/series/...` entity is a group of series (one instance per name), so that a
+//! recording has a handful of chunks per send whatever the number of joints.
 
 use longreach_arm::fast::{FastDynamics, Kin};
 use longreach_arm::spec::Geometry;
@@ -24,16 +28,11 @@ use rerun::blueprint::{
     Blueprint, BlueprintActivation, Horizontal, Spatial3DView, TimeSeriesView, Vertical,
 };
 use rerun::components::RotationQuat;
-use rerun::{
-    Boxes3D, Capsules3D, Color, Cylinders3D, Ellipsoids3D, Quaternion, Transform3D, ViewCoordinates,
-};
+use rerun::{Boxes3D, Capsules3D, Color, Cylinders3D, Ellipsoids3D, Quaternion, ViewCoordinates};
 
 use crate::{
     tension_color, Columns, RateGate, Recorder, SeriesId, StripsId, TransformId, SIM_TIME,
 };
-
-/// Frames buffered between two sends (one simulated second at 60 Hz).
-const FLUSH_FRAMES: usize = 60;
 
 /// Logs one driven-arm run; feed it every state with [`ArmLogger::observe`].
 #[derive(Debug)]
@@ -44,13 +43,22 @@ pub struct ArmLogger<'a> {
     kin: Kin,
     gate: RateGate,
     cols: Columns,
+    /// Kinematics at the commanded angles (for the tip error) and those angles.
+    kin_ref: Kin,
+    q_ref_rad: Vec<f64>,
     links: Vec<TransformId>,
-    ropes: Vec<StripsId>,
-    q: Vec<(SeriesId, SeriesId)>,
-    motors: Vec<(SeriesId, SeriesId, SeriesId)>,
-    tensions: Vec<(SeriesId, SeriesId)>,
+    ropes: StripsId,
+    joint_angles: SeriesId,
+    motor_angles: SeriesId,
+    motor_torques: SeriesId,
+    tensions: SeriesId,
     tip_error: SeriesId,
     motor_points_m: Vec<Vector3<f64>>,
+    /// Pulleys of every pair's rope, motor first: `None` = the motor pulley,
+    /// `Some(j)` = the pulley on joint `j`'s axis, with its radius.
+    rope_pulleys: Vec<Vec<(Option<usize>, f64)>>,
+    /// Scratch: rope points of one side.
+    points_m: Vec<[f64; 3]>,
     /// Drawing scale, m ([`draw_scale_m`]).
     scale_m: f64,
     frames: usize,
@@ -69,41 +77,42 @@ impl<'a> ArmLogger<'a> {
             .collect();
         let scale_m = draw_scale_m(arm);
         let rope_radius_m = 0.004 * scale_m;
+        let ropes = cols.strips("/world/ropes", rope_radius_m);
         let joint_name = |p: usize| arm.spec.joints[arm.pairs[p].spec.joint].name.clone();
-        let ropes = (0..arm.pairs.len())
-            .map(|p| cols.strips(format!("/world/ropes/{}", joint_name(p)), rope_radius_m))
-            .collect();
-        let q = arm
-            .spec
-            .joints
-            .iter()
-            .map(|j| {
-                (
-                    cols.series(format!("/series/joints/{}/q_rad", j.name)),
-                    cols.series(format!("/series/joints/{}/q_ref_rad", j.name)),
-                )
-            })
-            .collect();
-        let motors = (0..arm.pairs.len())
-            .map(|p| {
-                let j = joint_name(p);
-                (
-                    cols.series(format!("/series/motors/{j}/angle_rad")),
-                    cols.series(format!("/series/motors/{j}/ref_rad")),
-                    cols.series(format!("/series/motors/{j}/torque_n_m")),
-                )
-            })
-            .collect();
-        let tensions = (0..arm.pairs.len())
-            .map(|p| {
-                let j = joint_name(p);
-                (
-                    cols.series(format!("/series/tensions/{j}/pos_n")),
-                    cols.series(format!("/series/tensions/{j}/neg_n")),
-                )
-            })
-            .collect();
+        let joints: Vec<&str> = arm.spec.joints.iter().map(|j| j.name.as_str()).collect();
+        let pairs: Vec<String> = (0..arm.pairs.len()).map(joint_name).collect();
+        let named = |suffixes: &[&str], of: &[&str]| -> Vec<String> {
+            suffixes
+                .iter()
+                .flat_map(|s| of.iter().map(move |j| format!("{j}{s}")))
+                .collect()
+        };
+        let pairs: Vec<&str> = pairs.iter().map(String::as_str).collect();
+        let joint_angles =
+            cols.series_group("/series/joints/angle_rad", named(&[" q", " ref"], &joints));
+        let motor_angles = cols.series_group(
+            "/series/motors/angle_rad",
+            named(&[" motor", " motor ref"], &pairs),
+        );
+        let motor_torques = cols.series_group("/series/motors/torque_n_m", named(&[""], &pairs));
+        let tensions =
+            cols.series_group("/series/tensions/tension_n", named(&[" +", " -"], &pairs));
         let tip_error = cols.series("/series/tip/error_m");
+        let rope_pulleys = arm
+            .pairs
+            .iter()
+            .map(|pair| {
+                let mut route = pair.spec.route.clone();
+                route.sort_by_key(|r| r.joint);
+                std::iter::once((None, pair.spec.motor_radius_m))
+                    .chain(route.iter().map(|r| (Some(r.joint), r.radius_m)))
+                    .chain(std::iter::once((
+                        Some(pair.spec.joint),
+                        pair.spec.joint_radius_m,
+                    )))
+                    .collect()
+            })
+            .collect();
         let np = arm.pairs.len();
         let motor_points_m = (0..np)
             .map(|p| {
@@ -115,20 +124,26 @@ impl<'a> ArmLogger<'a> {
                 )
             })
             .collect();
+        let kin_ref = dynamics.make_kin();
         let me = Self {
             rec,
             arm,
             dynamics,
             kin,
+            kin_ref,
+            q_ref_rad: Vec::new(),
             gate: RateGate::new(rec.hz()),
             cols,
             links,
             ropes,
-            q,
-            motors,
+            joint_angles,
+            motor_angles,
+            motor_torques,
             tensions,
             tip_error,
             motor_points_m,
+            rope_pulleys,
+            points_m: Vec::new(),
             scale_m,
             frames: 0,
         };
@@ -151,18 +166,12 @@ impl<'a> ArmLogger<'a> {
             let base = format!("/world/arm/{}", link.name);
             for (i, v) in link.visuals.iter().enumerate() {
                 let path = format!("{base}/visual_{i}");
+                // The visual's pose in the link frame goes into the shape itself (one
+                // static row per visual instead of a transform and a shape).
                 let t = v.link_from_visual.translation.vector;
                 let q = v.link_from_visual.rotation;
-                rec.report(
-                    &path,
-                    s.log_static(
-                        path.as_str(),
-                        &Transform3D::from_translation_rotation(
-                            [t.x as f32, t.y as f32, t.z as f32],
-                            quat(&q),
-                        ),
-                    ),
-                );
+                let at = |p: Vector3<f64>| [p.x as f32, p.y as f32, p.z as f32];
+                let rot = RotationQuat::from(quat(&q));
                 let color = v.rgba.map_or(Color::from_rgb(170, 170, 180), |c| {
                     let b = |x: f64| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
                     Color::from_unmultiplied_rgba(b(c[0]), b(c[1]), b(c[2]), b(c[3]))
@@ -171,6 +180,8 @@ impl<'a> ArmLogger<'a> {
                     Geometry::Box { size_m } => s.log_static(
                         path.as_str(),
                         &Boxes3D::from_sizes([[size_m.x as f32, size_m.y as f32, size_m.z as f32]])
+                            .with_centers([at(t)])
+                            .with_quaternions([rot])
                             .with_colors([color])
                             .with_fill_mode(rerun::FillMode::Solid),
                     ),
@@ -180,18 +191,27 @@ impl<'a> ArmLogger<'a> {
                             [*length_m as f32],
                             [*radius_m as f32],
                         )
+                        .with_centers([at(t)])
+                        .with_quaternions([rot])
                         .with_colors([color])
                         .with_fill_mode(rerun::FillMode::Solid),
                     ),
                     Geometry::Capsule { radius_m, length_m } => s.log_static(
                         path.as_str(),
+                        // Rerun's capsule starts at its translation; URDF's is centred.
                         &Capsules3D::from_lengths_and_radii([*length_m as f32], [*radius_m as f32])
-                            .with_translations([[0.0, 0.0, -0.5 * *length_m as f32]])
+                            .with_translations([at(t + q * Vector3::new(
+                                0.0,
+                                0.0,
+                                -0.5 * length_m,
+                            ))])
+                            .with_quaternions([rot])
                             .with_colors([color]),
                     ),
                     Geometry::Sphere { radius_m } => s.log_static(
                         path.as_str(),
                         &Ellipsoids3D::from_radii([*radius_m as f32])
+                            .with_centers([at(t)])
                             .with_colors([color])
                             .with_fill_mode(rerun::FillMode::Solid),
                     ),
@@ -303,6 +323,8 @@ impl<'a> ArmLogger<'a> {
             joints.into(),
         ]));
         rec.report("blueprint", bp.send(s, BlueprintActivation::default()));
+        // The scene is encoded in the background while the run goes on.
+        rec.report("static scene", s.flush_async());
     }
 
     /// Logs `st` when it is due at the logging rate (reads it only).
@@ -320,48 +342,67 @@ impl<'a> ArmLogger<'a> {
             self.cols
                 .push_pose(*id, [o.x, o.y, o.z], [q.i, q.j, q.k, q.w]);
         }
+        // Strips of this frame: consecutive spans of the same colour are one strip (an
+        // ideal pair is one strip per rope side; relay friction splits it where the
+        // span tensions differ).
+        let mut strips: Vec<(Vec<[f64; 3]>, [u8; 4])> = Vec::new();
         for (p, pair) in arm.pairs.iter().enumerate() {
             let full = 2.0 * pair.spec.preload_n;
             // Spans motor side first; a pair without relay friction has one tension
             // along its whole rope.
             let spans = arm.span_tensions_n(st, p);
-            let strips = [1.0, -1.0]
-                .into_iter()
-                .enumerate()
-                .flat_map(|(side, sign)| {
-                    let points = self.rope_points(p, sign);
-                    // One strip per span, each coloured by its tension.
-                    points
-                        .windows(2)
-                        .enumerate()
-                        .map(|(i, w)| {
-                            let tension = spans[i.min(spans.len() - 1)][side];
-                            (vec![w[0], w[1]], tension_color(tension, full))
-                        })
-                        .collect::<Vec<_>>()
-                });
-            let strips: Vec<_> = strips.collect();
-            self.cols.push_strips(self.ropes[p], strips);
+            for (side, sign) in [1.0, -1.0].into_iter().enumerate() {
+                self.rope_points(p, sign);
+                let mut current: Option<(Vec<[f64; 3]>, [u8; 4])> = None;
+                for (i, w) in self.points_m.windows(2).enumerate() {
+                    let color = tension_color(spans[i.min(spans.len() - 1)][side], full);
+                    match &mut current {
+                        Some((points, c)) if *c == color => points.push(w[1]),
+                        _ => {
+                            strips.extend(current.take());
+                            current = Some((vec![w[0], w[1]], color));
+                        }
+                    }
+                }
+                strips.extend(current);
+            }
         }
-        for (j, (q, r)) in self.q.iter().enumerate() {
-            self.cols.push(*q, st.q_rad[j]);
-            self.cols.push(*r, st.q_ref_rad[j]);
+        self.cols.push_strips(self.ropes, strips);
+        let np = arm.pairs.len();
+        self.cols.push_group(
+            self.joint_angles,
+            st.q_rad.iter().chain(&st.q_ref_rad).copied(),
+        );
+        self.cols.push_group(
+            self.motor_angles,
+            st.motor_rad[..np]
+                .iter()
+                .chain(&st.motor_ref_rad[..np])
+                .copied(),
+        );
+        self.cols.push_group(
+            self.motor_torques,
+            st.motor_torque_n_m[..np].iter().copied(),
+        );
+        self.cols.push_group(
+            self.tensions,
+            (0..2).flat_map(|side| st.ropes[..np].iter().map(move |r| r[side].tension_n)),
+        );
+        if self.q_ref_rad != st.q_ref_rad {
+            self.dynamics.kinematics(&st.q_ref_rad, &mut self.kin_ref);
+            self.q_ref_rad.clone_from(&st.q_ref_rad);
         }
-        for (p, (a, r, t)) in self.motors.iter().enumerate() {
-            self.cols.push(*a, st.motor_rad[p]);
-            self.cols.push(*r, st.motor_ref_rad[p]);
-            self.cols.push(*t, st.motor_torque_n_m[p]);
-        }
-        for (p, (pos, neg)) in self.tensions.iter().enumerate() {
-            self.cols.push(*pos, st.ropes[p][0].tension_n);
-            self.cols.push(*neg, st.ropes[p][1].tension_n);
-        }
-        let err = (arm.tip_m(&st.q_rad) - arm.tip_m(&st.q_ref_rad)).norm();
+        let tip = self.tip_m(&self.kin);
+        let err = (tip - self.tip_m(&self.kin_ref)).norm();
         self.cols.push(self.tip_error, err);
         self.frames += 1;
-        if self.cols.frames() >= FLUSH_FRAMES {
-            self.cols.flush(self.rec);
-        }
+        self.cols.flush_when_due(self.rec);
+    }
+
+    /// World position of the arm's tip frame from kinematics `kin`, m.
+    fn tip_m(&self, kin: &Kin) -> Vector3<f64> {
+        let tip = &self.arm.spec.tip;
+        kin.origin[tip.link] + kin.rot[tip.link] * tip.link_from_frame.translation.vector
     }
 
     /// Frames logged so far.
@@ -375,45 +416,34 @@ impl<'a> ArmLogger<'a> {
         self.frames
     }
 
-    /// World points of rope `sign` (+1 / -1) of pair `p`: motor pulley, relay pulleys,
-    /// joint pulley, each offset by its radius to the rope's side (after kinematics).
-    fn rope_points(&self, p: usize, sign: f64) -> Vec<[f64; 3]> {
-        let spec = &self.arm.pairs[p].spec;
-        let mut centers: Vec<(Vector3<f64>, Vector3<f64>, f64)> =
-            Vec::with_capacity(spec.route.len() + 2);
-        centers.push((self.motor_points_m[p], Vector3::z(), spec.motor_radius_m));
-        let mut route = spec.route.clone();
-        route.sort_by_key(|r| r.joint);
-        for r in &route {
-            centers.push((
-                self.kin.origin[r.joint + 1],
-                self.kin.axis[r.joint + 1],
-                r.radius_m,
-            ));
-        }
-        centers.push((
-            self.kin.origin[spec.joint + 1],
-            self.kin.axis[spec.joint + 1],
-            spec.joint_radius_m,
-        ));
-        let n = centers.len();
-        (0..n)
-            .map(|i| {
-                let (c, axis, r) = centers[i];
-                let prev = centers[i.saturating_sub(1)].0;
-                let next = centers[(i + 1).min(n - 1)].0;
-                let d = next - prev;
-                let mut side = axis.cross(&d);
+    /// World points of rope `sign` (+1 / -1) of pair `p` into `self.points_m`: motor
+    /// pulley, relay pulleys, joint pulley, each offset by its radius to the rope's side
+    /// (after kinematics).
+    fn rope_points(&mut self, p: usize, sign: f64) {
+        let centre = |&(joint, radius_m): &(Option<usize>, f64)| match joint {
+            None => (self.motor_points_m[p], Vector3::z(), radius_m),
+            Some(j) => (self.kin.origin[j + 1], self.kin.axis[j + 1], radius_m),
+        };
+        let pulleys = &self.rope_pulleys[p];
+        let n = pulleys.len();
+        let mut points = std::mem::take(&mut self.points_m);
+        points.clear();
+        for i in 0..n {
+            let (c, axis, r) = centre(&pulleys[i]);
+            let prev = centre(&pulleys[i.saturating_sub(1)]).0;
+            let next = centre(&pulleys[(i + 1).min(n - 1)]).0;
+            let d = next - prev;
+            let mut side = axis.cross(&d);
+            if side.norm() < 1e-9 {
+                side = axis.cross(&Vector3::x());
                 if side.norm() < 1e-9 {
-                    side = axis.cross(&Vector3::x());
-                    if side.norm() < 1e-9 {
-                        side = axis.cross(&Vector3::y());
-                    }
+                    side = axis.cross(&Vector3::y());
                 }
-                let pt = c + side.normalize() * (sign * r);
-                [pt.x, pt.y, pt.z]
-            })
-            .collect()
+            }
+            let pt = c + side.normalize() * (sign * r);
+            points.push([pt.x, pt.y, pt.z]);
+        }
+        self.points_m = points;
     }
 }
 
@@ -425,4 +455,25 @@ fn quat(q: &UnitQuaternion<f64>) -> Quaternion {
 /// clamped to 0.1..1 m.
 fn draw_scale_m(arm: &DrivenArm) -> f64 {
     (0.1 * arm.tip_m(&arm.initial_q_rad).norm()).clamp(0.1, 1.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_tip_from_the_logger_kinematics_is_the_arm_tip() {
+        let arm = longreach_arm::anchor_chain(6, longreach_rope::LawKind::Elastic, 1e-3).unwrap();
+        let rec = Recorder::off();
+        let mut logger = ArmLogger::new(&rec, &arm);
+        for k in 0..5 {
+            let q: Vec<f64> = (0..arm.spec.ndofs())
+                .map(|j| 0.3 * ((k * 7 + j * 3) as f64).sin())
+                .collect();
+            logger.dynamics.kinematics(&q, &mut logger.kin);
+            let d = (logger.tip_m(&logger.kin) - arm.tip_m(&q)).norm();
+            assert!(d < 1e-12, "pose {k}: {d} m");
+            assert!(arm.tip_m(&q).norm() > 1.0);
+        }
+    }
 }

@@ -1,7 +1,11 @@
 //! Frames of a run buffered in memory and sent to Rerun in columns.
 
 use rerun::components::{RotationQuat, Translation3D};
-use rerun::{Color, LineStrip3D, LineStrips3D, Quaternion, Scalars, TimeColumn, Transform3D};
+use std::time::{Duration, Instant};
+
+use rerun::{
+    Color, LineStrip3D, LineStrips3D, Quaternion, Scalars, SeriesLines, TimeColumn, Transform3D,
+};
 
 use crate::Recorder;
 
@@ -35,7 +39,7 @@ impl RateGate {
     }
 }
 
-/// Handle of a scalar series in [`Columns`].
+/// Handle of a scalar series (or group of series) in [`Columns`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SeriesId(usize);
 /// Handle of a pose channel in [`Columns`].
@@ -52,25 +56,46 @@ enum Index {
 }
 
 #[derive(Debug, Clone)]
+struct Series {
+    entity: String,
+    /// Scalars per frame (instances of the entity).
+    width: usize,
+    /// Names of the instances (logged once, static) for a group.
+    names: Option<Vec<String>>,
+    /// `width` values per frame, frame after frame.
+    values: Vec<f64>,
+}
+
+#[derive(Debug, Clone)]
 struct Strips {
     entity: String,
     radius_m: f32,
     /// Strips per frame.
     counts: Vec<usize>,
-    points: Vec<Vec<[f32; 3]>>,
+    /// Points per strip.
+    lengths: Vec<usize>,
+    /// Points of every strip, strip after strip.
+    points: Vec<[f32; 3]>,
     colors: Vec<[u8; 4]>,
 }
 
-/// Channels (scalar series, poses, coloured line strips) filled frame by frame and
-/// sent with `send_columns` by [`Columns::flush`]. Pushing a frame costs a few
-/// vector pushes; one flush per simulated second (or per run) keeps logging cheap.
+/// Wall-clock time between two sends when frames are sent as they come
+/// ([`Columns::flush_when_due`]): a live viewer updates four times a second, and a
+/// recording gets few, large chunks (each chunk has a fixed encoding cost).
+const SEND_INTERVAL: Duration = Duration::from_millis(250);
+
+/// Channels (scalar series and groups of series, poses, coloured line strips) filled
+/// frame by frame and sent with `send_columns` by [`Columns::flush`]. Pushing a frame
+/// costs a few vector pushes; every channel becomes one chunk per send.
 #[derive(Debug, Clone)]
 pub struct Columns {
     timeline: &'static str,
     index: Index,
-    series: Vec<(String, Vec<f64>)>,
+    series: Vec<Series>,
     poses: Vec<(String, Vec<[f32; 3]>, Vec<[f32; 4]>)>,
     strips: Vec<Strips>,
+    last_send: Instant,
+    names_sent: bool,
 }
 
 impl Columns {
@@ -91,12 +116,32 @@ impl Columns {
             series: Vec::new(),
             poses: Vec::new(),
             strips: Vec::new(),
+            last_send: Instant::now(),
+            names_sent: false,
         }
     }
 
-    /// Adds a scalar series at `entity`.
+    /// Adds a scalar series at `entity` (one value per frame, [`Columns::push`]).
     pub fn series(&mut self, entity: impl Into<String>) -> SeriesId {
-        self.series.push((entity.into(), Vec::new()));
+        self.series.push(Series {
+            entity: entity.into(),
+            width: 1,
+            names: None,
+            values: Vec::new(),
+        });
+        SeriesId(self.series.len() - 1)
+    }
+
+    /// Adds a group of scalar series at `entity`, one instance per name (one value per
+    /// name per frame, [`Columns::push_group`]). The viewer draws a line per instance
+    /// under its name; a group is one chunk per send instead of one per series.
+    pub fn series_group(&mut self, entity: impl Into<String>, names: Vec<String>) -> SeriesId {
+        self.series.push(Series {
+            entity: entity.into(),
+            width: names.len(),
+            names: Some(names),
+            values: Vec::new(),
+        });
         SeriesId(self.series.len() - 1)
     }
 
@@ -112,6 +157,7 @@ impl Columns {
             entity: entity.into(),
             radius_m: radius_m as f32,
             counts: Vec::new(),
+            lengths: Vec::new(),
             points: Vec::new(),
             colors: Vec::new(),
         });
@@ -144,7 +190,12 @@ impl Columns {
 
     /// The value of series `id` in the current frame.
     pub fn push(&mut self, id: SeriesId, value: f64) {
-        self.series[id.0].1.push(value);
+        self.series[id.0].values.push(value);
+    }
+
+    /// The values of group `id` in the current frame, in the order of its names.
+    pub fn push_group(&mut self, id: SeriesId, values: impl IntoIterator<Item = f64>) {
+        self.series[id.0].values.extend(values);
     }
 
     /// The pose of channel `id` in the current frame: translation (m) and rotation
@@ -156,15 +207,18 @@ impl Columns {
     }
 
     /// The strips of channel `id` in the current frame, each with its colour.
-    pub fn push_strips<I>(&mut self, id: StripsId, strips: I)
+    pub fn push_strips<I, P>(&mut self, id: StripsId, strips: I)
     where
-        I: IntoIterator<Item = (Vec<[f64; 3]>, [u8; 4])>,
+        I: IntoIterator<Item = (P, [u8; 4])>,
+        P: IntoIterator<Item = [f64; 3]>,
     {
         let s = &mut self.strips[id.0];
         let mut n = 0;
         for (points, color) in strips {
+            let before = s.points.len();
             s.points
-                .push(points.into_iter().map(|p| p.map(|v| v as f32)).collect());
+                .extend(points.into_iter().map(|p| p.map(|v| v as f32)));
+            s.lengths.push(s.points.len() - before);
             s.colors.push(color);
             n += 1;
         }
@@ -178,75 +232,31 @@ impl Columns {
         }
     }
 
+    /// [`Columns::flush`] when a quarter of a second (wall clock) has passed since the
+    /// last send: call it after every frame of a long run.
+    pub fn flush_when_due(&mut self, rec: &Recorder) {
+        if self.last_send.elapsed() >= SEND_INTERVAL {
+            self.flush(rec);
+        }
+    }
+
     /// Sends every buffered frame to `rec` and empties the buffers (keeping the
     /// channels). A channel that missed a frame is a bug: it is reported, not sent.
     pub fn flush(&mut self, rec: &Recorder) {
+        self.last_send = Instant::now();
         let n = self.frames();
         if n == 0 {
             return;
         }
         if rec.is_enabled() {
-            let stream = rec.stream();
-            let time = self.time_column();
-            // Sends one channel's columns, or reports why it cannot (once).
-            let send = |entity: &str, frames: usize, columns: Result<Vec<_>, String>| {
-                let sent = if frames == n {
-                    columns.and_then(|c| {
-                        stream
-                            .send_columns(entity, [time.clone()], c)
-                            .map_err(|e| e.to_string())
-                    })
-                } else {
-                    Err(format!("{frames} entries for {n} frames"))
-                };
-                rec.report(entity, sent);
-            };
-            let err = |e: rerun::SerializationError| e.to_string();
-            for (entity, values) in &self.series {
-                let cols = Scalars::new(values.iter().copied()).columns_of_unit_batches();
-                send(
-                    entity,
-                    values.len(),
-                    cols.map(Iterator::collect).map_err(err),
-                );
-            }
-            for (entity, tr, q) in &self.poses {
-                let cols = Transform3D::update_fields()
-                    .with_many_translation(tr.iter().map(|t| Translation3D::from(*t)))
-                    .with_many_quaternion(
-                        q.iter()
-                            .map(|q| RotationQuat::from(Quaternion::from_xyzw(*q))),
-                    )
-                    .columns_of_unit_batches();
-                send(entity, tr.len(), cols.map(Iterator::collect).map_err(err));
-            }
-            for s in &self.strips {
-                let cols = LineStrips3D::update_fields()
-                    .with_strips(
-                        s.points
-                            .iter()
-                            .map(|p| LineStrip3D::from_iter(p.iter().copied())),
-                    )
-                    .with_colors(
-                        s.colors
-                            .iter()
-                            .map(|c| Color::from_unmultiplied_rgba(c[0], c[1], c[2], c[3])),
-                    )
-                    .with_radii(std::iter::repeat_n(s.radius_m, s.points.len()))
-                    .columns(s.counts.iter().copied());
-                send(
-                    &s.entity,
-                    s.counts.len(),
-                    cols.map(Iterator::collect).map_err(err),
-                );
-            }
+            self.send(rec, n);
         }
         match &mut self.index {
             Index::DurationS(t) => t.clear(),
             Index::Sequence(t) => t.clear(),
         }
-        for (_, v) in &mut self.series {
-            v.clear();
+        for s in &mut self.series {
+            s.values.clear();
         }
         for (_, t, q) in &mut self.poses {
             t.clear();
@@ -254,8 +264,93 @@ impl Columns {
         }
         for s in &mut self.strips {
             s.counts.clear();
+            s.lengths.clear();
             s.points.clear();
             s.colors.clear();
+        }
+    }
+
+    fn send(&mut self, rec: &Recorder, n: usize) {
+        let stream = rec.stream();
+        if !self.names_sent {
+            // Once per recording, static: series names and strip radii (one radius for
+            // every strip of a channel at every time).
+            self.names_sent = true;
+            for s in &self.strips {
+                rec.report(
+                    &s.entity,
+                    stream.log_static(
+                        s.entity.as_str(),
+                        &LineStrips3D::update_fields().with_radii([s.radius_m]),
+                    ),
+                );
+            }
+            for s in &self.series {
+                if let Some(names) = &s.names {
+                    rec.report(
+                        &s.entity,
+                        stream.log_static(
+                            s.entity.as_str(),
+                            &SeriesLines::new().with_names(names.iter().map(String::as_str)),
+                        ),
+                    );
+                }
+            }
+        }
+        let time = self.time_column();
+        // Sends one channel's columns, or reports why it cannot (once).
+        let send = |entity: &str, frames: usize, columns: Result<Vec<_>, String>| {
+            let sent = if frames == n {
+                columns.and_then(|c| {
+                    stream
+                        .send_columns(entity, [time.clone()], c)
+                        .map_err(|e| e.to_string())
+                })
+            } else {
+                Err(format!("{frames} entries for {n} frames"))
+            };
+            rec.report(entity, sent);
+        };
+        let err = |e: rerun::SerializationError| e.to_string();
+        for s in self.series.iter().filter(|s| s.width > 0) {
+            let cols = Scalars::new(s.values.iter().copied())
+                .columns(std::iter::repeat_n(s.width, s.values.len() / s.width));
+            send(
+                &s.entity,
+                s.values.len() / s.width,
+                cols.map(Iterator::collect).map_err(err),
+            );
+        }
+        for (entity, tr, q) in &self.poses {
+            let cols = Transform3D::update_fields()
+                .with_many_translation(tr.iter().map(|t| Translation3D::from(*t)))
+                .with_many_quaternion(
+                    q.iter()
+                        .map(|q| RotationQuat::from(Quaternion::from_xyzw(*q))),
+                )
+                .columns_of_unit_batches();
+            send(entity, tr.len(), cols.map(Iterator::collect).map_err(err));
+        }
+        for s in &self.strips {
+            let mut at = 0;
+            let strips = s.lengths.iter().map(|&len| {
+                let strip = LineStrip3D::from_iter(s.points[at..at + len].iter().copied());
+                at += len;
+                strip
+            });
+            let cols = LineStrips3D::update_fields()
+                .with_strips(strips)
+                .with_colors(
+                    s.colors
+                        .iter()
+                        .map(|c| Color::from_unmultiplied_rgba(c[0], c[1], c[2], c[3])),
+                )
+                .columns(s.counts.iter().copied());
+            send(
+                &s.entity,
+                s.counts.len(),
+                cols.map(Iterator::collect).map_err(err),
+            );
         }
     }
 }
@@ -292,7 +387,7 @@ mod tests {
             c.frame_at_s(k as f64);
             c.push(a, k as f64);
             c.push_pose(p, [0.0; 3], [0.0, 0.0, 0.0, 1.0]);
-            c.push_strips(s, [(vec![[0.0; 3], [1.0; 3]], [1, 2, 3, 255])]);
+            c.push_strips(s, [([[0.0; 3], [1.0; 3]], [1, 2, 3, 255])]);
         }
         assert_eq!(c.frames(), 3);
         c.flush(&Recorder::off());
