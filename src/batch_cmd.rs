@@ -101,6 +101,10 @@ impl ScenarioKind for ArmKind {
         longreach_arm::scenario::parse(text, file, dir).map(|_| ())
     }
 
+    fn portable_text(&self, text: &str, dir: &Path) -> String {
+        longreach_arm::scenario::with_absolute_paths(text, dir)
+    }
+
     fn run(
         &self,
         text: &str,

@@ -23,7 +23,7 @@ fn arm_batch_rows_equal_direct_runs() {
     )
     .unwrap();
     let out = tmp.path().join("out");
-    let csv = run_batch(&batch, &out);
+    let csv = run_batch(&batch, &out, &["--keep-outputs"]);
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     assert_eq!(
@@ -65,6 +65,27 @@ fn arm_batch_rows_equal_direct_runs() {
     // Different ropes give different tensions (the axis reached the model).
     assert_ne!(rows[0][2], rows[1][2]);
     assert_eq!(row[row.len() - 2], "ok");
+    // The kept scenario runs from its own folder (`longreach run`) and gives the row.
+    let kept = out.join("scenarios").join("1.toml");
+    let run_out = tmp.path().join("run1");
+    let o = Command::new(env!("CARGO_BIN_EXE_longreach"))
+        .args([
+            "run",
+            kept.to_str().unwrap(),
+            "--out",
+            run_out.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let metrics: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run_out.join("metrics.json")).unwrap())
+            .unwrap();
+    assert_eq!(
+        metrics["tip_error_m"].as_f64().unwrap().to_bits(),
+        m.tip_error_m.to_bits(),
+        "{metrics}"
+    );
 }
 
 /// The shipped rope x preload x payload study (scenarios/batch_arm_ropes_preloads_payloads.toml)
@@ -74,7 +95,7 @@ fn arm_rope_preload_payload_study_is_monotone_in_payload() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("out");
     let batch = scenarios().join("batch_arm_ropes_preloads_payloads.toml");
-    let csv = run_batch(&batch, &out);
+    let csv = run_batch(&batch, &out, &[]);
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     let col = |name: &str| {
@@ -126,8 +147,8 @@ fn arm_rope_preload_payload_study_is_monotone_in_payload() {
     }
 }
 
-/// Runs `longreach batch BATCH --out OUT`, demands success, returns results.csv.
-fn run_batch(batch: &std::path::Path, out: &std::path::Path) -> String {
+/// Runs `longreach batch BATCH --out OUT EXTRA..`, demands success, returns results.csv.
+fn run_batch(batch: &std::path::Path, out: &std::path::Path, extra: &[&str]) -> String {
     let o = Command::new(env!("CARGO_BIN_EXE_longreach"))
         .args([
             "batch",
@@ -135,6 +156,7 @@ fn run_batch(batch: &std::path::Path, out: &std::path::Path) -> String {
             "--out",
             out.to_str().unwrap(),
         ])
+        .args(extra)
         .output()
         .unwrap();
     assert_eq!(

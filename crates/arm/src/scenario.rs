@@ -230,6 +230,42 @@ pub fn load(path: &Path) -> Result<ArmScenario, ScenarioError> {
     parse(&text, &file, base)
 }
 
+/// The scenario `text` (whose relative paths resolve against `base`) with every file
+/// it names (`arm.urdf`, `transmission[].command.file`) made absolute, so that the text
+/// runs from any folder (the batch runner's `--keep-outputs` copies). Text that is not
+/// a TOML table comes back unchanged (parsing it reports the error).
+pub fn with_absolute_paths(text: &str, base: &Path) -> String {
+    let Ok(mut doc) = text.parse::<toml::Table>() else {
+        return text.to_string();
+    };
+    let absolute = |v: &mut toml::Value| {
+        if let Some(p) = v.as_str().map(Path::new).filter(|p| p.is_relative()) {
+            let full = base.join(p);
+            let full = full.canonicalize().unwrap_or(full);
+            *v = toml::Value::String(full.display().to_string());
+        }
+    };
+    if let Some(urdf) = doc
+        .get_mut("arm")
+        .and_then(|a| a.as_table_mut())
+        .and_then(|a| a.get_mut("urdf"))
+    {
+        absolute(urdf);
+    }
+    if let Some(ts) = doc.get_mut("transmission").and_then(|t| t.as_array_mut()) {
+        for t in ts {
+            if let Some(file) = t
+                .get_mut("command")
+                .and_then(|c| c.as_table_mut())
+                .and_then(|c| c.get_mut("file"))
+            {
+                absolute(file);
+            }
+        }
+    }
+    toml::to_string(&doc).unwrap_or_else(|_| text.to_string())
+}
+
 /// Compiles the scenario `text` (from `file`; relative paths resolve against `base`).
 pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, ScenarioError> {
     let doc: ArmFile = toml::from_str(text).map_err(|e| toml_error(text, file, &e))?;

@@ -46,6 +46,13 @@ pub trait ScenarioKind: std::fmt::Debug + Send + Sync {
         dir: &Path,
         keep_output: bool,
     ) -> Result<Outcome, RowError>;
+
+    /// The scenario `text` as kept by `--keep-outputs` (`scenarios/<index>.toml`): it
+    /// must run from that folder, so a kind whose scenarios name files relative to
+    /// `dir` makes them absolute. Default: unchanged.
+    fn portable_text(&self, text: &str, _dir: &Path) -> String {
+        text.to_string()
+    }
 }
 
 /// The kinds this crate provides: the rig's bode scenarios.

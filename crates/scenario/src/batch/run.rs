@@ -64,7 +64,8 @@ pub fn run_one(batch: &Batch, index: usize, options: &RunOptions) -> Row {
                 }
             }
         };
-        write(format!("{index}.toml"), scenario.text.as_bytes());
+        let kept = batch.kind.portable_text(&scenario.text, &batch.base_dir);
+        write(format!("{index}.toml"), kept.as_bytes());
         if let Some(output) = output {
             let json = serde_json::to_vec_pretty(&output).unwrap_or_default();
             write(format!("{index}.json"), &json);
