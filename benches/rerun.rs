@@ -10,6 +10,7 @@ use std::hint::black_box;
 use std::path::Path;
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use longreach_arm::scenario::ArmScenario;
 use longreach_viz::{arm::ArmLogger, Recorder, Target, DEFAULT_HZ};
 
 fn scenario(name: &str) -> std::path::PathBuf {
@@ -19,7 +20,7 @@ fn scenario(name: &str) -> std::path::PathBuf {
 }
 
 /// One arm run of `duration_s`, logged to `rec`.
-fn arm_run(sc: &longreach_arm::scenario::ArmScenario, duration_s: f64, rec: &Recorder) -> usize {
+fn arm_run(sc: &ArmScenario, duration_s: f64, rec: &Recorder) -> usize {
     let mut viewer = ArmLogger::new(rec, &sc.arm);
     let (_, m) = longreach_arm::run::run_observed(
         &sc.arm,
@@ -34,41 +35,47 @@ fn arm_run(sc: &longreach_arm::scenario::ArmScenario, duration_s: f64, rec: &Rec
     m.steps
 }
 
-fn bench_arm(c: &mut Criterion) {
-    let sc = longreach_arm::scenario::load(&scenario("arm_dyneema2_distal_step.toml"))
-        .expect("scenario");
-    let dir = tempfile::tempdir().expect("tempdir");
-    let mut g = c.benchmark_group("rerun_arm_2s");
-    g.sample_size(20);
+/// A recording into `dir/file` at the default rate.
+fn open(dir: &Path, file: &str) -> Recorder {
+    let target = Target::Save(Some(dir.join(file)));
+    Recorder::start("bench", &target, dir, DEFAULT_HZ).expect("rec")
+}
+
+/// The arm run of `duration_s` without logging and with an `.rrd` at 60 Hz, whole
+/// recording from start to closed file.
+fn bench_arm_run(c: &mut Criterion, sc: &ArmScenario, dir: &Path, duration_s: f64, samples: usize) {
+    let mut g = c.benchmark_group(format!("rerun_arm_{duration_s}s"));
+    g.sample_size(samples);
     g.bench_function("off", |b| {
-        b.iter(|| black_box(arm_run(&sc, 2.0, &Recorder::off())))
+        b.iter(|| black_box(arm_run(sc, duration_s, &Recorder::off())))
     });
     g.bench_function("save_60hz", |b| {
         b.iter(|| {
-            let target = Target::Save(Some(dir.path().join("arm.rrd")));
-            let rec = Recorder::start("bench", &target, dir.path(), DEFAULT_HZ).expect("rec");
-            let n = arm_run(&sc, 2.0, &rec);
+            let rec = open(dir, "arm.rrd");
+            let n = arm_run(sc, duration_s, &rec);
             rec.finish();
             black_box(n)
         })
     });
     g.finish();
+}
 
-    // Where the cost of a recording goes: an empty recording (open + close), the
-    // static scene and blueprint alone, and a 10 s run where the fixed part amortises.
+fn bench_arm(c: &mut Criterion) {
+    let sc = longreach_arm::scenario::load(&scenario("arm_dyneema2_distal_step.toml"))
+        .expect("scenario");
+    let dir = tempfile::tempdir().expect("tempdir");
+    bench_arm_run(c, &sc, dir.path(), 2.0, 20);
+
+    // Where the cost of a recording goes: an empty recording (open + close) and the
+    // static scene with the blueprint alone.
     let mut g = c.benchmark_group("rerun_arm_parts");
     g.sample_size(20);
     g.bench_function("open_close", |b| {
-        b.iter(|| {
-            let target = Target::Save(Some(dir.path().join("empty.rrd")));
-            let rec = Recorder::start("bench", &target, dir.path(), DEFAULT_HZ).expect("rec");
-            black_box(rec.finish())
-        })
+        b.iter(|| black_box(open(dir.path(), "empty.rrd").finish()))
     });
     g.bench_function("static_scene", |b| {
         b.iter(|| {
-            let target = Target::Save(Some(dir.path().join("static.rrd")));
-            let rec = Recorder::start("bench", &target, dir.path(), DEFAULT_HZ).expect("rec");
+            let rec = open(dir.path(), "static.rrd");
             let viewer = ArmLogger::new(&rec, &sc.arm);
             let n = viewer.finish();
             black_box((n, rec.finish()))
@@ -76,21 +83,8 @@ fn bench_arm(c: &mut Criterion) {
     });
     g.finish();
 
-    let mut g = c.benchmark_group("rerun_arm_10s");
-    g.sample_size(10);
-    g.bench_function("off", |b| {
-        b.iter(|| black_box(arm_run(&sc, 10.0, &Recorder::off())))
-    });
-    g.bench_function("save_60hz", |b| {
-        b.iter(|| {
-            let target = Target::Save(Some(dir.path().join("arm10.rrd")));
-            let rec = Recorder::start("bench", &target, dir.path(), DEFAULT_HZ).expect("rec");
-            let n = arm_run(&sc, 10.0, &rec);
-            rec.finish();
-            black_box(n)
-        })
-    });
-    g.finish();
+    // The scenario as shipped (10 s).
+    bench_arm_run(c, &sc, dir.path(), 10.0, 10);
 }
 
 fn bench_bode(c: &mut Criterion) {
@@ -108,8 +102,7 @@ fn bench_bode(c: &mut Criterion) {
     g.bench_function("off", |b| b.iter(|| black_box(sc.run_one(0).expect("run"))));
     g.bench_function("save_60hz", |b| {
         b.iter(|| {
-            let target = Target::Save(Some(dir.path().join("bode.rrd")));
-            let rec = Recorder::start("bench", &target, dir.path(), DEFAULT_HZ).expect("rec");
+            let rec = open(dir.path(), "bode.rrd");
             let (run, trace) = sc.run_one_traced(0).expect("run");
             let t = longreach_viz::rig::decimate(&trace, DEFAULT_HZ);
             longreach_viz::rig::log_bode(
