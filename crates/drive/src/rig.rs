@@ -388,25 +388,14 @@ impl RigModel {
         }
         let s = &self.spec;
         let h = self.dt_s;
-        let (i_out, c_out, r2, l, inv_l) = (
-            s.output_inertia_kg_m2,
-            s.output_damping_n_m_s,
-            s.output_radius_m,
-            s.rope_length_m,
-            self.inv_length_per_m,
-        );
+        let (r2, l, inv_l) = (s.output_radius_m, s.rope_length_m, self.inv_length_per_m);
         let prep = [
             self.stepper.prepare(&st.ropes[0]),
             self.stepper.prepare(&st.ropes[1]),
         ];
         let (phi0, w0, a0) = (st.output_rad, st.output_rate_rad_s, st.output_accel_rad_s2);
-        // Trapezoidal rule: w1 = 2(phi1-phi0)/h - w0, a1 = 4(phi1-phi0)/h^2 - 4 w0/h - a0.
-        let (k_dyn, two_h, four_h2) = (self.k_dyn, self.two_over_h, self.four_over_h2);
-        let inertial = |phi: f64| {
-            let a1 = four_h2 * (phi - phi0) - two_h * 2.0 * w0 - a0;
-            let w1 = two_h * (phi - phi0) - w0;
-            i_out * a1 + c_out * w1
-        };
+        let k_dyn = self.k_dyn;
+        let inertial = |phi: f64| self.inertial_torque_n_m((phi0, w0, a0), phi);
         let two_t = 2.0 * s.mean_tension_n;
         let constant_force = s.tensioner == Tensioner::ConstantForce;
         let eval = |phi: f64, x: f64| {
@@ -490,6 +479,23 @@ impl RigModel {
         )
     }
 
+    /// Output rate and acceleration `(w1, a1)` at the end of a step that ends at angle
+    /// `phi` from the start `(phi0, w0, a0)` (trapezoidal rule:
+    /// `w1 = 2(phi - phi0)/h - w0`, `a1 = 4(phi - phi0)/h^2 - 4 w0/h - a0`).
+    fn end_rates(&self, (phi0, w0, a0): (f64, f64, f64), phi: f64) -> (f64, f64) {
+        let (two_h, four_h2) = (self.two_over_h, self.four_over_h2);
+        let w1 = two_h * (phi - phi0) - w0;
+        let a1 = four_h2 * (phi - phi0) - two_h * 2.0 * w0 - a0;
+        (w1, a1)
+    }
+
+    /// Inertia and damping torque of the output pulley at the end of a step ending at
+    /// `phi` from the start `start`, N*m.
+    fn inertial_torque_n_m(&self, start: (f64, f64, f64), phi: f64) -> f64 {
+        let (w1, a1) = self.end_rates(start, phi);
+        self.spec.output_inertia_kg_m2 * a1 + self.spec.output_damping_n_m_s * w1
+    }
+
     /// Ends a step at output angle `phi` and carriage `x`: trapezoidal rate and
     /// acceleration from the step's start `(phi0, w0, a0)`, time and input advanced;
     /// a non-finite state (`states_finite` covers the ropes and relays) or a runaway
@@ -498,15 +504,13 @@ impl RigModel {
         &self,
         st: &mut RigState,
         input_rad: f64,
-        (phi0, w0, a0): (f64, f64, f64),
+        start: (f64, f64, f64),
         phi: f64,
         x: f64,
         states_finite: bool,
         tensions: &str,
     ) -> Result<(), DriveError> {
-        let (two_h, four_h2) = (self.two_over_h, self.four_over_h2);
-        let w1 = two_h * (phi - phi0) - w0;
-        let a1 = four_h2 * (phi - phi0) - two_h * 2.0 * w0 - a0;
+        let (w1, a1) = self.end_rates(start, phi);
         st.time_s += self.dt_s;
         st.input_rad = input_rad;
         st.output_rad = phi;
@@ -744,13 +748,8 @@ impl RigModel {
             }
         }
         let (phi0, w0, a0) = (st.output_rad, st.output_rate_rad_s, st.output_accel_rad_s2);
-        let (k_dyn, two_h, four_h2) = (self.k_dyn, self.two_over_h, self.four_over_h2);
-        let (i_out, c_out) = (s.output_inertia_kg_m2, s.output_damping_n_m_s);
-        let inertial = |phi: f64| {
-            let a1 = four_h2 * (phi - phi0) - two_h * 2.0 * w0 - a0;
-            let w1 = two_h * (phi - phi0) - w0;
-            i_out * a1 + c_out * w1
-        };
+        let k_dyn = self.k_dyn;
+        let inertial = |phi: f64| self.inertial_torque_n_m((phi0, w0, a0), phi);
         let two_t = 2.0 * s.mean_tension_n;
         let constant_force = s.tensioner == Tensioner::ConstantForce;
         let x_fixed = st.carriage_m;
