@@ -35,6 +35,6 @@ pub use error::ArmError;
 pub use generate::{anchor_chain, chain_urdf};
 pub use multibody::{step, ArmData, ArmModel, ModelOptions};
 pub use spec::{ArmSpec, Element, Frame, Inertial, JointKind, JointSpec, LinkSpec, SpecError};
-pub use system::{DrivenArm, DrivenState, StaticPair, SystemEnergy};
+pub use system::{DrivenArm, DrivenState, StaticPair, SystemEnergy, RELAY_NEWTON_TOLERANCE};
 pub use transmission::{MotorMode, MotorSpec, PairSpec, Relay, RoutingMatrix, TensionerKind};
 pub use urdf::{load_urdf, parse_urdf, UrdfError};

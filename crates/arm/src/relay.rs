@@ -718,14 +718,11 @@ pub(crate) fn largest_update(c: &CompiledRelays, sc: &RelayScratch, tol: f64) ->
     worst.max(sc.dz[c.iz_theta()].abs() / tol)
 }
 
-/// Relative tolerance on the Newton updates (angles, rad) of a step with relay friction.
-pub(crate) const NEWTON_TOLERANCE: f64 = 1e-10;
-
 /// Newton iterations of a step after which oscillating relay updates are damped.
 pub(crate) const DAMP_AFTER_ITERATIONS: u32 = 16;
 
-/// Applies the local update `dz` to the relay angles; returns false while any change is
-/// above the tolerance. Two safeguards keep Newton from cycling on the non-smooth parts
+/// Applies the local update `dz` to the relay angles; returns whether every change is
+/// within the tolerance and whether a safeguard changed the update. Two safeguards keep Newton from cycling on the non-smooth parts
 /// of the relay equation: a relay whose rate would jump across the stick band (from one
 /// sliding direction to the other, beyond the slip rate) is set to rest instead (Newton
 /// on the regularised Coulomb law overshoots from the sliding plateaus; from rest, inside
@@ -741,11 +738,12 @@ pub(crate) fn apply_relay_update(
     h: f64,
     iteration: u32,
     tol: f64,
-) -> bool {
+) -> RelayUpdate {
     let m = c.relays();
     let slip = c.friction.slip_rate_rad_s;
     let two_h = 2.0 / h;
     let mut small = true;
+    let mut guarded = false;
     for side in 0..2 {
         for rl in 0..m {
             let k = side * m + rl;
@@ -764,14 +762,25 @@ pub(crate) fn apply_relay_update(
             let w_new = two_h * (new - psi0) - w0;
             if c.friction.coefficient > 0.0 && w_old * w_new < 0.0 && w_new.abs() > slip {
                 new = psi0 + 0.5 * h * w0;
+                guarded = true;
             }
+            guarded |= sc.damping[k] < 1.0;
             if (new - old).abs() > tol * (1.0 + new.abs()) {
                 small = false;
             }
             sc.psi1[k] = new;
         }
     }
-    small
+    RelayUpdate { small, guarded }
+}
+
+/// What [`apply_relay_update`] did.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct RelayUpdate {
+    /// Every change within the tolerance.
+    pub small: bool,
+    /// A safeguard (rest across the stick band, damping) changed the Newton update.
+    pub guarded: bool,
 }
 
 /// Ends the step: commits every span at the converged state and advances the relay

@@ -62,7 +62,21 @@ pub struct DrivenArm {
     driven: Vec<usize>,
     /// Some pair has relay friction: the joint matrix is solved by LU.
     any_friction: bool,
+    /// Relative tolerance on the Newton updates of the implicit step (angles, rad):
+    /// the step ends when every update is below `tol (1 + |angle|)` (or, for the
+    /// chord iterations, when the error left is estimated below a hundredth of it).
+    /// Defaults: 1e-12 without relay friction, [`RELAY_NEWTON_TOLERANCE`] with.
+    pub newton_tolerance: f64,
 }
+
+/// Default [`DrivenArm::newton_tolerance`] of an arm with relay friction, rad (0.2 nm
+/// of rope on a 0.2 m pulley). On `arm_dyneema2_base_step_relay_friction.toml` the
+/// joint angles of a 1e-8, 1e-9 and 1e-10 solve differ from a 1e-13 solve by at most
+/// 5.2e-5, 6.2e-5 and 8.2e-5 rad over 10 s (the relays' stick-slip amplifies any
+/// round-off to this level) for 1.8, 2.0 and 2.3 Newton iterations per step; 1e-8 lets
+/// a step with friction gain up to 3.5e-4 J on the 75 kJ swing of
+/// `tests/relay_friction.rs` (1e-9: 2.1e-5 J, within its 1e-9 relative bound).
+pub const RELAY_NEWTON_TOLERANCE: f64 = 1e-9;
 
 /// Mutable state of a [`DrivenArm`] (and its scratch).
 #[derive(Debug, Clone)]
@@ -135,6 +149,11 @@ struct Scratch {
     kept: bool,
     /// Steps started since the Newton matrix was last assembled.
     age: u32,
+    /// Last measured contraction of a chord iteration (update over the update before
+    /// it) and the matrix age it was measured at: the error estimate of a step's first
+    /// chord iteration, which has no update before it in the step.
+    chord_rate: f64,
+    chord_rate_age: u32,
 }
 
 /// What the static map gives for one pair at a pose.
@@ -371,6 +390,11 @@ impl DrivenArm {
         let any_friction = compiled.iter().any(|p| p.relays.is_some());
         Ok(Self {
             any_friction,
+            newton_tolerance: if any_friction {
+                RELAY_NEWTON_TOLERANCE
+            } else {
+                1e-12
+            },
             dynamics: FastDynamics::new(&spec),
             damping: spec
                 .joints
@@ -445,6 +469,8 @@ impl DrivenArm {
             lu_tmp: vec![0.0; n],
             kept: false,
             age: 0,
+            chord_rate: f64::INFINITY,
+            chord_rate_age: 0,
         }
     }
 
@@ -809,11 +835,7 @@ impl DrivenArm {
         // Relay friction (stick-slip, spans going slack) may need the damped iterations
         // of `relay::apply_relay_update`.
         let max_iterations = if self.any_friction { 120 } else { 60 };
-        let tol = if self.any_friction {
-            relay::NEWTON_TOLERANCE
-        } else {
-            1e-12
-        };
+        let tol = self.newton_tolerance;
         // Chord iterations (Newton matrix kept from the last assembly) need every pair
         // to go through `relay::assemble`.
         let chord_capable = self.any_friction && self.pairs.iter().all(|p| p.relays.is_some());
@@ -967,6 +989,8 @@ impl DrivenArm {
                 cholesky_solve(&sc.kq, n, &mut sc.rhs);
             }
             let mut small = true;
+            // A safeguard changed a relay update: no error estimate from the update.
+            let mut guarded = false;
             // Largest joint update relative to the tolerance (chord control).
             let mut update = 0.0f64;
             for j in 0..n {
@@ -983,9 +1007,9 @@ impl DrivenArm {
                         small = false;
                     }
                     update = update.max(relay::largest_update(c, rs, tol));
-                    if !relay::apply_relay_update(c, rs, &st.relays[p], h, iterations, tol) {
-                        small = false;
-                    }
+                    let done = relay::apply_relay_update(c, rs, &st.relays[p], h, iterations, tol);
+                    small &= done.small;
+                    guarded |= done.guarded;
                     continue;
                 }
                 let [b11, b12, b21, b22, w0, w1, r0, r1] = sc.local[p];
@@ -1007,12 +1031,25 @@ impl DrivenArm {
                     }
                 }
             }
-            if !refresh && (!last_update.is_finite() || update * update > CHORD_ERROR * last_update)
-            {
+            if !refresh {
                 // A chord update converges linearly: the error left after it is about
-                // the next update, update^2 / last update; it must be well below the
-                // tolerance (and the first chord update of a step has no estimate).
-                small = false;
+                // the next update, rate * update, with the contraction rate of this
+                // step (update / last update). The step ends when that error is well
+                // below the tolerance (the update itself may be above it; Hairer and
+                // Wanner's stopping rule for simplified Newton). The first chord update
+                // of a step takes the rate measured last (on a younger matrix: scaled
+                // up by the age ratio).
+                let rate = if last_update.is_finite() {
+                    sc.chord_rate = update / last_update;
+                    sc.chord_rate_age = sc.age;
+                    sc.chord_rate
+                } else {
+                    sc.chord_rate * f64::from(sc.age.max(1)) / f64::from(sc.chord_rate_age.max(1))
+                };
+                small = !guarded
+                    && (small || update <= CHORD_ACCEPT_UPDATE)
+                    && rate < 0.5
+                    && update * rate <= CHORD_ERROR;
             }
             if small && flips < 4 {
                 for (p, pair) in self.pairs.iter().enumerate() {
@@ -1260,6 +1297,8 @@ impl DrivenArm {
             lu_tmp: vec![],
             kept: false,
             age: 0,
+            chord_rate: f64::INFINITY,
+            chord_rate_age: 0,
         }
     }
 }
@@ -1272,8 +1311,11 @@ const CHORD_BELOW: f64 = 1e4;
 const CHORD_CONTRACTION: f64 = 0.25;
 
 /// A chord update ends the step only when the error it leaves (estimated from the
-/// contraction) is below this fraction of the tolerance.
+/// contraction) is below this fraction of the tolerance...
 const CHORD_ERROR: f64 = 1e-2;
+
+/// ...and the update itself below this many tolerances.
+const CHORD_ACCEPT_UPDATE: f64 = 1e3;
 
 /// Steps a kept Newton matrix may start: then a fresh one (a matrix kept over many
 /// steps lets errors far below the tolerance accumulate: 2e-11 rad over 0.6 s in the
