@@ -6,6 +6,11 @@
 //! Heavy (sweeps with a non-linear rope take ~1 min each on 2 cores):
 //! `cargo test -p longreach-ident --release --test confusion -- --ignored --nocapture`
 //! (`CONFUSION_KINDS=relaxation` or `=sine_sweep` to run one kind).
+//! One row or one dataset: `CONFUSION_EFFECTS=relay_friction` (comma-separated effect
+//! names; `control` selects the control datasets) runs only those rows,
+//! `CONFUSION_ROPES=dyneema2` only that rope, `CONFUSION_SETTINGS=1` only that
+//! parameter setting (index into `settings`, 0 or 1) of each effect. With a filter the
+//! criterion is asserted on the rows that ran.
 //! The small version (relaxation, control + extra_retardation) runs by default in
 //! `tests/loop.rs`.
 
@@ -106,16 +111,30 @@ fn run_case(
     }
     let ds = Dataset::load(&path).unwrap();
     let prep = Prepared::new(&ds).unwrap();
-    let (d, _, _) = diagnose(&prep, &base).unwrap();
+    let t0 = std::time::Instant::now();
+    let (d, base_fit, _) = diagnose(&prep, &base).unwrap();
     println!(
-        "{kind:?} {rope} hidden={:?} seed={seed} -> missing={:?} ranking={:?}",
+        "{kind:?} {rope} hidden={:?} seed={seed} -> missing={:?} ranking={:?} ({:.1} s)",
         hidden.map(|h| (h.0.name(), h.1.to_vec())),
         d.missing_effect,
         d.candidates
             .iter()
             .map(|c| (c.effect.as_str(), (c.score * 10.0).round() / 10.0))
-            .collect::<Vec<_>>()
+            .collect::<Vec<_>>(),
+        t0.elapsed().as_secs_f64()
     );
+    if std::env::var_os("CONFUSION_VERBOSE").is_some() {
+        println!(
+            "  baseline nrmse {:.5} (floor {:.5}) {:?}",
+            base_fit.nrmse, base_fit.noise_floor, d.baseline.params
+        );
+        for c in &d.candidates {
+            println!(
+                "  {} nrmse {:.5} score {:.1} explained {:.3} {:?}",
+                c.effect, c.nrmse, c.score, c.explained, c.params
+            );
+        }
+    }
     Verdict {
         missing: d.missing_effect,
         first: d.candidates.first().map(|c| c.effect.clone()),
@@ -136,8 +155,24 @@ fn confusion_matrix_full() {
     let ropes = ["dyneema2", "vectran2"];
     let mut rows = Vec::new();
     let mut control = (0, 0);
+    let t0 = std::time::Instant::now();
     // CONFUSION_KINDS=relaxation or =sine_sweep restricts the study to one kind.
     let only = std::env::var("CONFUSION_KINDS").unwrap_or_default();
+    // CONFUSION_EFFECTS, CONFUSION_ROPES, CONFUSION_SETTINGS: see the header.
+    let list = |var: &str| -> Vec<String> {
+        std::env::var(var)
+            .unwrap_or_default()
+            .split(',')
+            .map(|s| s.trim().to_string())
+            .filter(|s| !s.is_empty())
+            .collect()
+    };
+    let (only_effects, only_ropes, only_settings) = (
+        list("CONFUSION_EFFECTS"),
+        list("CONFUSION_ROPES"),
+        list("CONFUSION_SETTINGS"),
+    );
+    let wanted = |l: &[String], x: &str| l.is_empty() || l.iter().any(|s| s == x);
     for kind in [DataKind::Relaxation, DataKind::SineSweep] {
         let name = if kind == DataKind::Relaxation {
             "relaxation"
@@ -148,6 +183,9 @@ fn confusion_matrix_full() {
             continue;
         }
         for (i, rope) in ropes.iter().enumerate() {
+            if !wanted(&only_effects, "control") || !wanted(&only_ropes, rope) {
+                continue;
+            }
             for seed in 0..2u64 {
                 let s = 100 + i as u64 * 10 + seed;
                 control.1 += 1;
@@ -156,11 +194,21 @@ fn confusion_matrix_full() {
                 }
             }
         }
-        for e in REGISTRY.iter().copied().filter(|e| e.applies_to(kind)) {
+        for e in REGISTRY
+            .iter()
+            .copied()
+            .filter(|e| e.applies_to(kind) && wanted(&only_effects, e.name()))
+        {
             // (decisive, ranked first, datasets)
             let (mut decisive, mut first, mut n) = (0, 0, 0);
             for (i, rope) in ropes.iter().enumerate() {
+                if !wanted(&only_ropes, rope) {
+                    continue;
+                }
                 for (j, v) in settings(e, kind).iter().enumerate() {
+                    if !wanted(&only_settings, &j.to_string()) {
+                        continue;
+                    }
                     let s = 1000 + i as u64 * 10 + j as u64;
                     n += 1;
                     let v = run_case(kind, rope, Some((e, v)), s, j == 0);
@@ -181,6 +229,7 @@ fn confusion_matrix_full() {
         "| all | control (null) | {} | - | {} |",
         control.0, control.1
     );
+    println!("wall time {:.0} s", t0.elapsed().as_secs_f64());
     let _ = effects::names();
     // Issue 3: the hidden effect ranks first in >= 90% of the datasets; controls give
     // null in >= 95%. (`decisive` is reported; where two effects fit equally well the
@@ -189,4 +238,8 @@ fn confusion_matrix_full() {
         assert!(*f as f64 >= 0.9 * *n as f64, "{e}: ranked first {f}/{n}");
     }
     assert!(control.0 as f64 >= 0.95 * control.1 as f64);
+    assert!(
+        !rows.is_empty() || control.1 > 0,
+        "the filters selected no dataset"
+    );
 }
