@@ -322,11 +322,24 @@ impl Residuals for FrfProblem<'_, '_> {
     }
 }
 
-/// Starting values: a grid over the free parameters (7 points each, log-spaced where
-/// the parameter is, at most 3 parameters gridded: the effect's and `k1_scale`), scored
-/// by the analytic response for sweeps (then refined by least squares on it) and by the
-/// simulation for the other kinds. Deterministic.
-fn starting_values(prep: &Prepared<'_>, model: &Model) -> Result<Vec<Vec<f64>>, String> {
+/// Starting values: a grid over the free parameters (9 points each for sweeps, 5
+/// otherwise, plus the starting value; log-spaced where the parameter is, at most 3
+/// parameters gridded: the effect's and `k1_scale`), scored by the analytic response
+/// for sweeps (then refined by least squares on it) and by the simulation for the other
+/// kinds. Deterministic.
+///
+/// Sweeps: a gridded parameter the analytic response cannot see (every cost of the grid
+/// is the same along its axis: `relay_friction` acts on the rig, and dry friction has no
+/// amplitude-independent transfer function) would start at the first point of its
+/// axis, whatever the data. With `scan_hidden`, such parameters are instead scanned on
+/// the time-domain simulation, one at a time along their grid axis (the others at the
+/// analytic start, the hidden ones at their starting values until scanned), and the
+/// best point is kept.
+fn starting_values(
+    prep: &Prepared<'_>,
+    model: &Model,
+    scan_hidden: bool,
+) -> Result<Vec<Vec<f64>>, String> {
     let specs = model.fit_specs(prep.runs.len());
     let mut x0: Vec<f64> = specs.iter().map(|s| s.initial).collect();
     let slots = model.free_slots(prep.runs.len());
@@ -414,6 +427,49 @@ fn starting_values(prep: &Prepared<'_>, model: &Model) -> Result<Vec<Vec<f64>>, 
         ) {
             if r.ssr <= costs[best] {
                 x0 = r.values;
+            }
+        }
+        // Gridded parameters the analytic response cannot see: the cost of every grid
+        // point equals that of the point with this coordinate at its first value.
+        let hidden: Vec<usize> = (0..gridded.len())
+            .filter(|&g| {
+                let stride: usize = axes[..g].iter().map(|a| a.len()).product();
+                let len = axes[g].len();
+                (0..total).all(|k| {
+                    let digit = (k / stride) % len;
+                    costs[k].to_bits() == costs[k - digit * stride].to_bits()
+                })
+            })
+            .collect();
+        if scan_hidden && !hidden.is_empty() {
+            let sim_cost = |x: &Vec<f64>| -> f64 {
+                let m = model.with_values(x, prep.runs.len());
+                prep.simulate(&m)
+                    .map(|s| prep.residuals_of(&s).iter().map(|v| v * v).sum::<f64>())
+                    .unwrap_or(f64::INFINITY)
+            };
+            for &g in &hidden {
+                x0[gridded[g]] = specs[gridded[g]].initial;
+            }
+            let mut best_cost = f64::INFINITY;
+            for &g in &hidden {
+                let line: Vec<Vec<f64>> = axes[g]
+                    .iter()
+                    .map(|&v| {
+                        let mut x = x0.clone();
+                        x[gridded[g]] = v;
+                        x
+                    })
+                    .collect();
+                let line_costs: Vec<f64> = line.par_iter().map(sim_cost).collect();
+                if let Some(k) = (0..line.len())
+                    .min_by(|&a, &b| line_costs[a].total_cmp(&line_costs[b]).then(a.cmp(&b)))
+                {
+                    if line_costs[k] < best_cost {
+                        best_cost = line_costs[k];
+                        x0 = line[k].clone();
+                    }
+                }
             }
         }
     } else {
@@ -512,7 +568,7 @@ fn starting_values(prep: &Prepared<'_>, model: &Model) -> Result<Vec<Vec<f64>>, 
 /// decisive then, and the time-domain fits (of a non-linear law above all) are the
 /// dearest part of a diagnosis.
 pub fn screen_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, String> {
-    let starts = starting_values(prep, model)?;
+    let starts = starting_values(prep, model, false)?;
     let scored: Vec<Result<(Model, Vec<Vec<f64>>, f64), String>> = starts
         .par_iter()
         .map(|x| {
@@ -543,7 +599,7 @@ pub fn screen_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, String
 pub fn fit_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, String> {
     let sims0 = prep.simulate(model)?;
     let (nrmse_before, noise_floor) = prep.overall(&sims0);
-    let starts = starting_values(prep, model)?;
+    let starts = starting_values(prep, model, true)?;
     let mut best: Option<(Model, Option<FitResult>, f64)> = None;
     for start in &starts {
         let model_start = model.with_values(start, prep.runs.len());
