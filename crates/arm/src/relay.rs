@@ -335,6 +335,8 @@ pub(crate) struct RelayScratch {
     prev_step: Vec<f64>,
     /// Step factor of each relay angle (halved when its updates oscillate).
     damping: Vec<f64>,
+    /// Relays whose last update jumped across the stick band.
+    crossed: Vec<bool>,
 }
 
 impl RelayScratch {
@@ -356,6 +358,7 @@ impl RelayScratch {
             dz: vec![0.0; l],
             prev_step: vec![0.0; 2 * c.relays()],
             damping: vec![1.0; 2 * c.relays()],
+            crossed: vec![false; 2 * c.relays()],
         }
     }
 }
@@ -722,14 +725,15 @@ pub(crate) fn largest_update(c: &CompiledRelays, sc: &RelayScratch, tol: f64) ->
 pub(crate) const DAMP_AFTER_ITERATIONS: u32 = 16;
 
 /// Applies the local update `dz` to the relay angles; returns whether every change is
-/// within the tolerance and whether a safeguard changed the update. Two safeguards keep Newton from cycling on the non-smooth parts
-/// of the relay equation: a relay whose rate would jump across the stick band (from one
-/// sliding direction to the other, beyond the slip rate) is set to rest instead (Newton
-/// on the regularised Coulomb law overshoots from the sliding plateaus; from rest, inside
-/// the steep band, it converges monotonically); and a relay whose updates flip sign
-/// without shrinking (a span going slack and taut between iterates: a kink of the rope
-/// law on each side of the pulley) after [`DAMP_AFTER_ITERATIONS`] Newton iterations
-/// takes half steps from then on (bisection of the kink).
+/// within the tolerance and whether a safeguard changed the update. Two safeguards
+/// keep Newton from cycling on the non-smooth parts of the relay equation: a relay
+/// whose rate would jump across the stick band (from one sliding direction to the
+/// other, beyond the slip rate: Newton on the regularised Coulomb law overshoots from
+/// the sliding plateaus) is marked for [`solve_crossed_relays`], which solves its own
+/// equation inside the band; and a relay whose updates flip sign without shrinking (a
+/// span going slack and taut between iterates: a kink of the rope law on each side of
+/// the pulley) after [`DAMP_AFTER_ITERATIONS`] Newton iterations takes half steps from
+/// then on (bisection of the kink). A step never ends on a guarded iteration.
 #[inline(never)]
 pub(crate) fn apply_relay_update(
     c: &CompiledRelays,
@@ -761,7 +765,9 @@ pub(crate) fn apply_relay_update(
             let w_old = two_h * (old - psi0) - w0;
             let w_new = two_h * (new - psi0) - w0;
             if c.friction.coefficient > 0.0 && w_old * w_new < 0.0 && w_new.abs() > slip {
+                // Across the stick band: solved alone next ([`solve_crossed_relays`]).
                 new = psi0 + 0.5 * h * w0;
+                sc.crossed[k] = true;
                 guarded = true;
             }
             guarded |= sc.damping[k] < 1.0;
@@ -772,6 +778,80 @@ pub(crate) fn apply_relay_update(
         }
     }
     RelayUpdate { small, guarded }
+}
+
+/// Solves the equation of every relay that [`apply_relay_update`] found jumping across
+/// the stick band alone, every other unknown held at its trial value, for its angle.
+/// `g(psi) = J a1 + tau_f + r (f_l - f_{l+1})` increases with `psi` (inertia,
+/// friction slope and the stiffness of both spans add up; the hub-load term is
+/// `coefficient` times smaller), so a Newton iteration kept inside a bracket (bisection
+/// when it would leave it) finds its root; the global Newton iteration then goes on
+/// from a point that meets the relay's own equation, inside the steep band, instead of
+/// jumping from one sliding plateau to the other.
+#[inline(never)]
+pub(crate) fn solve_crossed_relays(
+    c: &CompiledRelays,
+    stepper: &RopeStepper,
+    sc: &mut RelayScratch,
+    inp: &Local<'_>,
+    x_m: f64,
+    tol: f64,
+) {
+    let (m, ns) = (c.relays(), c.spans());
+    let (h, j) = (inp.h, c.friction.inertia_kg_m2);
+    for side in 0..2 {
+        for rl in 0..m {
+            let k = side * m + rl;
+            if !std::mem::take(&mut sc.crossed[k]) {
+                continue;
+            }
+            let r = c.radius_m[rl];
+            let (ia, ib) = (side * ns + rl, side * ns + rl + 1);
+            // g and dg/dpsi at the trial angle.
+            let eval = |sc: &mut RelayScratch| {
+                let (fa, ka, _) = span_tension(c, stepper, inp, x_m, &sc.psi1, &sc.prep, side, rl);
+                let (fb, kb, _) =
+                    span_tension(c, stepper, inp, x_m, &sc.psi1, &sc.prep, side, rl + 1);
+                sc.f[ia] = fa;
+                sc.f[ib] = fb;
+                let (g, t) = relay_residual(c, inp, &sc.psi1, &sc.f, side, rl);
+                let dg = 4.0 * j / (h * h)
+                    + 2.0 / h * t.d_rate_n_m_s
+                    + t.d_tension_sum_m * r * (ka - kb)
+                    + r * r * (ka + kb);
+                (g, dg)
+            };
+            let mut lo = f64::NEG_INFINITY;
+            let mut hi = f64::INFINITY;
+            for _ in 0..60 {
+                let psi = sc.psi1[k];
+                let (g, dg) = eval(sc);
+                if g == 0.0 {
+                    break;
+                }
+                if g > 0.0 {
+                    hi = psi;
+                } else {
+                    lo = psi;
+                }
+                let mut next = psi - g / dg;
+                if !(next > lo && next < hi && next.is_finite()) {
+                    next = if lo.is_finite() && hi.is_finite() {
+                        0.5 * (lo + hi)
+                    } else {
+                        // No bracket yet: a Newton step (dg > 0) points towards the
+                        // root; take it, at least a slip-rate's worth.
+                        psi - (g / dg).signum()
+                            * (g / dg).abs().max(0.5 * h * c.friction.slip_rate_rad_s)
+                    };
+                }
+                sc.psi1[k] = next;
+                if (next - psi).abs() <= 1e-3 * tol * (1.0 + next.abs()) {
+                    break;
+                }
+            }
+        }
+    }
 }
 
 /// What [`apply_relay_update`] did.

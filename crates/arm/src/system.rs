@@ -70,12 +70,10 @@ pub struct DrivenArm {
 }
 
 /// Default [`DrivenArm::newton_tolerance`] of an arm with relay friction, rad (0.2 nm
-/// of rope on a 0.2 m pulley). On `arm_dyneema2_base_step_relay_friction.toml` the
-/// joint angles of a 1e-8, 1e-9 and 1e-10 solve differ from a 1e-13 solve by at most
-/// 5.2e-5, 6.2e-5 and 8.2e-5 rad over 10 s (the relays' stick-slip amplifies any
-/// round-off to this level) for 1.8, 2.0 and 2.3 Newton iterations per step; 1e-8 lets
-/// a step with friction gain up to 3.5e-4 J on the 75 kJ swing of
-/// `tests/relay_friction.rs` (1e-9: 2.1e-5 J, within its 1e-9 relative bound).
+/// of rope on a 0.2 m pulley). On `arm_dyneema2_base_step_relay_friction.toml` (10 s)
+/// the joint angles of a 1e-10 and a 1e-9 solve stay within 1.2e-9 and 3.0e-9 rad of a
+/// 1e-13 solve, for 2.05 and 1.83 Newton iterations per step; a 1e-8 solve (1.62) moves
+/// them by 1.2e-4 rad (a relay takes the other side of its stick band somewhere).
 pub const RELAY_NEWTON_TOLERANCE: f64 = 1e-9;
 
 /// Mutable state of a [`DrivenArm`] (and its scratch).
@@ -1010,6 +1008,19 @@ impl DrivenArm {
                     let done = relay::apply_relay_update(c, rs, &st.relays[p], h, iterations, tol);
                     small &= done.small;
                     guarded |= done.guarded;
+                    if done.guarded {
+                        let inp = Local {
+                            h,
+                            n: pair.n,
+                            motor_radius_m: pair.spec.motor_radius_m,
+                            motor: MotorRow::Fixed,
+                            constant_force_n: None,
+                            theta_rad: th1[p],
+                            q: &sc.q1,
+                            state: &st.relays[p],
+                        };
+                        relay::solve_crossed_relays(c, &pair.stepper, rs, &inp, x1[p], tol);
+                    }
                     continue;
                 }
                 let [b11, b12, b21, b22, w0, w1, r0, r1] = sc.local[p];
@@ -1051,6 +1062,8 @@ impl DrivenArm {
                     && rate < 0.5
                     && update * rate <= CHORD_ERROR;
             }
+            // A relay moved by a safeguard has not met its equation yet.
+            small &= !guarded;
             if small && flips < 4 {
                 for (p, pair) in self.pairs.iter().enumerate() {
                     if let MotorMode::Servo {
