@@ -398,9 +398,22 @@ fn elongation(
     side: usize,
     i: usize,
 ) -> f64 {
+    elongation_at(c, inp, c.gq(i, inp.q), x_m, psi, side, i)
+}
+
+/// [`elongation`] with `G_i . q` given (the same for both sides of span `i`).
+fn elongation_at(
+    c: &CompiledRelays,
+    inp: &Local<'_>,
+    gq: f64,
+    x_m: f64,
+    psi: &[f64],
+    side: usize,
+    i: usize,
+) -> f64 {
     let m = c.relays();
     let sg = if side == 0 { 1.0 } else { -1.0 };
-    let mut e = inp.state.offset_m[i][side] - sg * c.gq(i, inp.q);
+    let mut e = inp.state.offset_m[i][side] - sg * gq;
     if i == 0 {
         e += x_m + sg * inp.motor_radius_m * inp.theta_rad;
     }
@@ -425,7 +438,22 @@ pub(crate) fn span_tension(
     side: usize,
     i: usize,
 ) -> (f64, f64, f64) {
-    let e = elongation(c, inp, x_m, psi, side, i);
+    span_tension_at(c, stepper, inp, c.gq(i, inp.q), x_m, psi, prep, side, i)
+}
+
+/// [`span_tension`] with `G_i . q` given: tension (N), stiffness (N/m) and strain.
+fn span_tension_at(
+    c: &CompiledRelays,
+    stepper: &RopeStepper,
+    inp: &Local<'_>,
+    gq: f64,
+    x_m: f64,
+    psi: &[f64],
+    prep: &[PreparedStep],
+    side: usize,
+    i: usize,
+) -> (f64, f64, f64) {
+    let e = elongation_at(c, inp, gq, x_m, psi, side, i);
     let strain = e * c.inv_span_length[i];
     let (f, k, _) = stepper.tension_piece(&prep[side * c.spans() + i], strain);
     (f, k * c.inv_span_length[i], strain)
@@ -442,9 +470,10 @@ fn span_tensions(
     x_m: &mut f64,
 ) -> bool {
     let ns = c.spans();
-    for side in 0..2 {
-        for i in 0..ns {
-            let (f, k, _) = span_tension(c, stepper, inp, *x_m, &sc.psi1, &sc.prep, side, i);
+    for i in 0..ns {
+        let gq = c.gq(i, inp.q);
+        for side in 0..2 {
+            let (f, k, _) = span_tension_at(c, stepper, inp, gq, *x_m, &sc.psi1, &sc.prep, side, i);
             sc.f[side * ns + i] = f;
             sc.k[side * ns + i] = k;
         }
@@ -890,10 +919,11 @@ pub(crate) fn commit(
             q,
             state: &*state,
         };
-        for side in 0..2 {
-            for i in 0..ns {
+        for i in 0..ns {
+            let gq = c.gq(i, q);
+            for side in 0..2 {
                 let (f, _, strain) =
-                    span_tension(c, stepper, &inp, x_m, &sc.psi1, &sc.prep, side, i);
+                    span_tension_at(c, stepper, &inp, gq, x_m, &sc.psi1, &sc.prep, side, i);
                 sc.f[side * ns + i] = f;
                 sc.k[side * ns + i] = strain;
             }
