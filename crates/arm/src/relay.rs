@@ -426,23 +426,9 @@ fn elongation_at(
     e
 }
 
-/// Tensions of every span `[+, -]` (per rope) at joint angles `q`, motor angle
-/// `theta_rad`, stretch `x_m` and relay angles `psi` from the prepared steps.
-pub(crate) fn span_tension(
-    c: &CompiledRelays,
-    stepper: &RopeStepper,
-    inp: &Local<'_>,
-    x_m: f64,
-    psi: &[f64],
-    prep: &[PreparedStep],
-    side: usize,
-    i: usize,
-) -> (f64, f64, f64) {
-    span_tension_at(c, stepper, inp, c.gq(i, inp.q), x_m, psi, prep, side, i)
-}
-
-/// [`span_tension`] with `G_i . q` given: tension (N), stiffness (N/m) and strain.
-fn span_tension_at(
+/// Tension (N, per rope), stiffness (N/m) and strain of span `i` of side `side` at the
+/// trial state (`gq = G_i . q`, the same for both sides) from the prepared steps.
+fn span_tension(
     c: &CompiledRelays,
     stepper: &RopeStepper,
     inp: &Local<'_>,
@@ -473,7 +459,7 @@ fn span_tensions(
     for i in 0..ns {
         let gq = c.gq(i, inp.q);
         for side in 0..2 {
-            let (f, k, _) = span_tension_at(c, stepper, inp, gq, *x_m, &sc.psi1, &sc.prep, side, i);
+            let (f, k, _) = span_tension(c, stepper, inp, gq, *x_m, &sc.psi1, &sc.prep, side, i);
             sc.f[side * ns + i] = f;
             sc.k[side * ns + i] = k;
         }
@@ -836,11 +822,13 @@ pub(crate) fn solve_crossed_relays(
             }
             let r = c.radius_m[rl];
             let (ia, ib) = (side * ns + rl, side * ns + rl + 1);
+            let (gqa, gqb) = (c.gq(rl, inp.q), c.gq(rl + 1, inp.q));
             // g and dg/dpsi at the trial angle.
             let eval = |sc: &mut RelayScratch| {
-                let (fa, ka, _) = span_tension(c, stepper, inp, x_m, &sc.psi1, &sc.prep, side, rl);
+                let (fa, ka, _) =
+                    span_tension(c, stepper, inp, gqa, x_m, &sc.psi1, &sc.prep, side, rl);
                 let (fb, kb, _) =
-                    span_tension(c, stepper, inp, x_m, &sc.psi1, &sc.prep, side, rl + 1);
+                    span_tension(c, stepper, inp, gqb, x_m, &sc.psi1, &sc.prep, side, rl + 1);
                 sc.f[ia] = fa;
                 sc.f[ib] = fb;
                 let (g, t) = relay_residual(c, inp, &sc.psi1, &sc.f, side, rl);
@@ -923,7 +911,7 @@ pub(crate) fn commit(
             let gq = c.gq(i, q);
             for side in 0..2 {
                 let (f, _, strain) =
-                    span_tension_at(c, stepper, &inp, gq, x_m, &sc.psi1, &sc.prep, side, i);
+                    span_tension(c, stepper, &inp, gq, x_m, &sc.psi1, &sc.prep, side, i);
                 sc.f[side * ns + i] = f;
                 sc.k[side * ns + i] = strain;
             }
