@@ -23,6 +23,19 @@
 //! microscopic first steps that pass the `ftol` test (a premature "convergence", seen
 //! on the paper's relaxation fit started at the centre of its log bounds).
 //!
+//! # Points where the model fails
+//!
+//! A model may fail to evaluate (a solver that does not converge, a blow-up) at a
+//! point the optimiser tries. At the starting values that is an error. At a trial
+//! point of the optimiser it is a rejected step: the residuals returned are the last
+//! evaluated ones times 1000, which MINPACK counts as a step that made the fit worse
+//! (norm at least 10x the current one), so it shrinks its trust region and tries
+//! closer. In a forward-difference Jacobian (and in the uncertainties' one) a column
+//! whose forward point fails is taken backward. The rejected trials are counted in
+//! [`FitResult::termination`]. Before, one failed trial ended the whole fit with an
+//! error, e.g. the relay-pulley solve of `relay_friction` at one point near the
+//! optimum (a candidate of `diagnose` then had no score at all).
+//!
 //! # Uncertainties
 //!
 //! At the optimum the Jacobian `J = d r / d x` is computed again, in the parameters
@@ -374,18 +387,45 @@ fn evaluate(
     Ok(out)
 }
 
-/// Evaluates the residuals at each parameter vector in parallel, in a fixed order.
-fn evaluate_many(
+/// One-sided differences: the residuals at `x` and, for every column `j`, the slope
+/// `(r(point(j, h_j)) - r(x)) / h_j` with `h_j = steps[j]`, all evaluated in parallel
+/// and combined in a fixed order. A column whose point the model cannot evaluate is
+/// taken the other way (`-h_j`); an error only when both fail (or `x` does). Returns
+/// `(r(x), columns, evaluations beyond p + 1)`.
+#[allow(clippy::type_complexity)]
+fn differences(
     problem: &dyn Residuals,
     specs: &[ParamSpec],
-    points: &[Vec<f64>],
+    x: &[f64],
+    point: &(dyn Fn(usize, f64) -> Vec<f64> + Sync),
+    steps: &[f64],
     n: usize,
-) -> Result<Vec<Vec<f64>>, FitError> {
-    let results: Vec<Result<Vec<f64>, FitError>> = points
+) -> Result<(Vec<f64>, Vec<Vec<f64>>, usize), FitError> {
+    let p = steps.len();
+    let points: Vec<Vec<f64>> = std::iter::once(x.to_vec())
+        .chain((0..p).map(|j| point(j, steps[j])))
+        .collect();
+    let mut results: Vec<Result<Vec<f64>, FitError>> = points
         .par_iter()
         .map(|x| evaluate(problem, specs, x, Some(n)))
         .collect();
-    results.into_iter().collect()
+    let r0 = results.remove(0)?;
+    let mut extra = 0;
+    let mut cols = Vec::with_capacity(p);
+    for (j, r) in results.into_iter().enumerate() {
+        let (r, h) = match r {
+            Ok(r) => (r, steps[j]),
+            Err(e) => {
+                extra += 1;
+                match evaluate(problem, specs, &point(j, -steps[j]), Some(n)) {
+                    Ok(r) => (r, -steps[j]),
+                    Err(_) => return Err(e),
+                }
+            }
+        };
+        cols.push(r.iter().zip(&r0).map(|(a, b)| (a - b) / h).collect());
+    }
+    Ok((r0, cols, extra))
 }
 
 struct Problem<'a> {
@@ -398,6 +438,11 @@ struct Problem<'a> {
     error: RefCell<Option<FitError>>,
     jacobians: Cell<usize>,
     evaluations: Cell<usize>,
+    /// Residuals of the last point that evaluated (see "Points where the model fails").
+    last_good: RefCell<na::DVector<f64>>,
+    /// Trial points where the model failed, and the first failure.
+    rejected: Cell<usize>,
+    first_rejection: RefCell<Option<FitError>>,
 }
 
 impl Problem<'_> {
@@ -434,10 +479,16 @@ impl LeastSquaresProblem<f64, na::Dyn, na::Dyn> for Problem<'_> {
         self.evaluations.set(self.evaluations.get() + 1);
         let x = self.params_of(self.u.as_slice());
         match evaluate(self.residuals, self.specs, &x, Some(self.n)) {
-            Ok(r) => Some(na::DVector::from_vec(r)),
+            Ok(r) => {
+                let r = na::DVector::from_vec(r);
+                self.last_good.borrow_mut().copy_from(&r);
+                Some(r)
+            }
             Err(e) => {
-                self.fail(e);
-                None
+                // A trial point: a step to reject (module docs).
+                self.rejected.set(self.rejected.get() + 1);
+                self.first_rejection.borrow_mut().get_or_insert(e);
+                Some(&*self.last_good.borrow() * 1e3)
             }
         }
     }
@@ -451,19 +502,26 @@ impl LeastSquaresProblem<f64, na::Dyn, na::Dyn> for Problem<'_> {
             .iter()
             .map(|u| self.diff_step * u.abs().max(1.0))
             .collect();
-        let points: Vec<Vec<f64>> = (0..=p)
-            .map(|j| {
-                let mut u = u0.to_vec();
-                if j > 0 {
-                    u[j - 1] += steps[j - 1];
-                }
-                self.params_of(&u)
-            })
-            .collect();
-        match evaluate_many(self.residuals, self.specs, &points, self.n) {
-            Ok(r) => Some(na::DMatrix::from_fn(self.n, p, |i, j| {
-                (r[j + 1][i] - r[0][i]) / steps[j]
-            })),
+        let transforms = &self.transforms;
+        let point = |j: usize, h: f64| -> Vec<f64> {
+            transforms
+                .iter()
+                .enumerate()
+                .map(|(k, t)| t.param_at(u0[k] + if k == j { h } else { 0.0 }))
+                .collect()
+        };
+        match differences(
+            self.residuals,
+            self.specs,
+            &self.params_of(u0),
+            &point,
+            &steps,
+            self.n,
+        ) {
+            Ok((_, cols, extra)) => {
+                self.evaluations.set(self.evaluations.get() + extra);
+                Some(na::DMatrix::from_fn(self.n, p, |i, j| cols[j][i]))
+            }
             Err(e) => {
                 self.fail(e);
                 None
@@ -527,6 +585,9 @@ pub fn fit(
         error: RefCell::new(None),
         jacobians: Cell::new(0),
         evaluations: Cell::new(1),
+        last_good: RefCell::new(na::DVector::from_vec(r0)),
+        rejected: Cell::new(0),
+        first_rejection: RefCell::new(None),
     };
     let lm = LevenbergMarquardt::new()
         .with_ftol(opts.tolerance)
@@ -551,7 +612,13 @@ pub fn fit(
             })
         }
     };
-    let termination = format!("{:?}", report.termination);
+    let mut termination = format!("{:?}", report.termination);
+    if let Some(e) = target.first_rejection.borrow().as_ref() {
+        termination.push_str(&format!(
+            "; {} trial point(s) rejected where the model failed, first: {e}",
+            target.rejected.get()
+        ));
+    }
     let (ssr, std_errors, correlation, extra_evals) =
         uncertainties(problem, params, &x, n, opts.diff_step)?;
     Ok(FitResult {
@@ -601,19 +668,15 @@ fn uncertainties(
             }
         })
         .collect();
-    let points: Vec<Vec<f64>> = (0..=p)
-        .map(|j| {
-            let mut v = x.to_vec();
-            if j > 0 {
-                v[j - 1] += steps[j - 1];
-            }
-            v
-        })
-        .collect();
-    let r = evaluate_many(problem, specs, &points, n)?;
-    let ssr: f64 = r[0].iter().map(|v| v * v).sum();
+    let point = |j: usize, h: f64| {
+        let mut v = x.to_vec();
+        v[j] += h;
+        v
+    };
+    let (r0, cols, extra) = differences(problem, specs, x, &point, &steps, n)?;
+    let ssr: f64 = r0.iter().map(|v| v * v).sum();
     // Jacobian w.r.t. relative changes x_j (1 + d_j): J_s = J diag(scale)
-    let js = na::DMatrix::from_fn(n, p, |i, j| (r[j + 1][i] - r[0][i]) / steps[j] * scale[j]);
+    let js = na::DMatrix::from_fn(n, p, |i, j| cols[j][i] * scale[j]);
     let jtj = js.transpose() * &js;
     let sigma2 = ssr / (n - p) as f64;
     let inv = na::Cholesky::new(jtj).map(|c| c.inverse());
@@ -633,5 +696,5 @@ fn uncertainties(
         }
         _ => (vec![f64::INFINITY; p], vec![vec![f64::NAN; p]; p]),
     };
-    Ok((ssr, std_errors, correlation, p + 1))
+    Ok((ssr, std_errors, correlation, p + 1 + extra))
 }

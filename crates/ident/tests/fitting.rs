@@ -376,3 +376,44 @@ fn result_does_not_depend_on_thread_count() {
     assert_eq!(one.ssr.to_bits(), four.ssr.to_bits());
     assert_eq!(one.iterations, four.iterations);
 }
+
+/// A model that cannot be evaluated past x = 2 (a solver that does not converge there)
+/// while its residuals keep falling towards x = 2.5: the trial points past 2 are
+/// rejected steps, not the end of the fit, and the fit stops at the edge of the region
+/// where the model works (its Jacobian taken backward there).
+#[test]
+fn failed_trial_points_are_rejected_steps() {
+    struct Edge;
+    impl Residuals for Edge {
+        fn residuals(&self, p: &[f64], out: &mut Vec<f64>) -> Result<(), String> {
+            if p[0] > 2.0 {
+                return Err(format!("solver did not converge at x = {}", p[0]));
+            }
+            out.clear();
+            out.extend([p[0] - 2.5, 0.5 * (p[0] - 2.5), 0.1]);
+            Ok(())
+        }
+    }
+    let r = fit(
+        &Edge,
+        &[ParamSpec::new("x", "m", 0.5)],
+        &FitOptions::default(),
+    )
+    .unwrap();
+    assert!(
+        r.values[0] <= 2.0 && r.values[0] > 1.999,
+        "x = {} ({})",
+        r.values[0],
+        r.termination
+    );
+    assert!(r.termination.contains("rejected"), "{}", r.termination);
+    assert!(r.std_errors[0].is_finite(), "{:?}", r.std_errors);
+    // At the start a failure is still an error.
+    let e = fit(
+        &Edge,
+        &[ParamSpec::new("x", "m", 2.2)],
+        &FitOptions::default(),
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("did not converge"), "{e}");
+}
