@@ -133,6 +133,9 @@ fn run_case(
                 "  {} nrmse {:.5} score {:.1} explained {:.3} {:?}",
                 c.effect, c.nrmse, c.score, c.explained, c.params
             );
+            if let Some(e) = &c.error {
+                println!("    error: {e}");
+            }
         }
     }
     Verdict {
