@@ -21,7 +21,9 @@ fn cpu_ms() -> f64 {
         .split_whitespace()
         .map(|v| v.parse().unwrap_or(0.0))
         .collect();
-    f.get(11).zip(f.get(12)).map_or(0.0, |(u, s)| (u + s) * 10.0)
+    f.get(11)
+        .zip(f.get(12))
+        .map_or(0.0, |(u, s)| (u + s) * 10.0)
 }
 
 fn main() {
