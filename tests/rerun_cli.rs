@@ -155,12 +155,21 @@ fn an_arm_run_is_recorded_with_every_entity_and_logging_changes_nothing() {
     assert_eq!(entity(&s, "/series/motors/angle_rad")["rows"], frames);
     assert_eq!(entity(&s, "/series/tip/error_m")["rows"], frames);
     assert_eq!(entity(&s, "/world/ropes")["rows"], frames);
-    assert_eq!(entity(&s, "/world/arm/link5")["rows"], frames);
-    assert!(entity(&s, "/world/arm/link5")["components"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .any(|c| c.as_str().unwrap().starts_with("Transform3D")));
+    let link5 = entity(&s, "/world/arm/link5");
+    assert_eq!(link5["rows"], frames);
+    // Its visuals and the pulleys on its joint axis: one static row.
+    assert_eq!(link5["static_rows"], 1);
+    for kind in ["Transform3D", "Cylinders3D"] {
+        assert!(
+            link5["components"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .any(|c| c.as_str().unwrap().starts_with(kind)),
+            "{kind} in {}",
+            link5["components"]
+        );
+    }
     assert_eq!(entity(&s, "/world/motors")["static"], true);
     // Values: the recorded joint angle equals the CSV's at the same times (the CSV
     // keeps every 10th step with 10 significant digits).

@@ -5,9 +5,9 @@
 //!
 //! ```text
 //! /world                        view coordinates (right-handed, z up)
-//! /world/arm/<link>             pose of every moving link (sim_time)
-//! /world/arm/<link>/visual_<i>  its URDF visual geometry (static)
-//! /world/arm/<link>/pulleys     joint and relay pulleys on its joint axis (static)
+//! /world/arm/<link>             pose of every moving link (sim_time); its URDF visual
+//!                               geometry and the joint and relay pulleys on its joint
+//!                               axis (static, one batch per shape kind)
 //! /world/motors                 motor pulleys at the base (static)
 //! /world/ropes                  every rope, a strip per span, coloured by tension
 //! /series/joints/angle_rad      "<joint> q" then "<joint> ref" for every joint
@@ -161,60 +161,45 @@ impl<'a> ArmLogger<'a> {
             s.log_static("/world", &ViewCoordinates::RIGHT_HAND_Z_UP()),
         );
         let spec = &self.arm.spec;
+        // Every link's URDF visuals and the pulleys on its joint axis, one static row
+        // per link (one batch per shape kind): a handful of chunks for the whole arm.
+        let mut shapes: Vec<LinkShapes> = vec![LinkShapes::default(); spec.links.len()];
         let mut mesh_warned = false;
-        for link in &spec.links {
-            let base = format!("/world/arm/{}", link.name);
-            for (i, v) in link.visuals.iter().enumerate() {
-                let path = format!("{base}/visual_{i}");
-                // The visual's pose in the link frame goes into the shape itself (one
-                // static row per visual instead of a transform and a shape).
+        for (link, shapes) in spec.links.iter().zip(shapes.iter_mut()) {
+            for v in &link.visuals {
+                // The visual's pose in the link frame goes into the shape itself.
                 let t = v.link_from_visual.translation.vector;
                 let q = v.link_from_visual.rotation;
-                let at = |p: Vector3<f64>| [p.x as f32, p.y as f32, p.z as f32];
                 let rot = RotationQuat::from(quat(&q));
                 let color = v.rgba.map_or(Color::from_rgb(170, 170, 180), |c| {
                     let b = |x: f64| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
                     Color::from_unmultiplied_rgba(b(c[0]), b(c[1]), b(c[2]), b(c[3]))
                 });
-                let logged = match &v.geometry {
-                    Geometry::Box { size_m } => s.log_static(
-                        path.as_str(),
-                        &Boxes3D::from_sizes([[size_m.x as f32, size_m.y as f32, size_m.z as f32]])
-                            .with_centers([at(t)])
-                            .with_quaternions([rot])
-                            .with_colors([color])
-                            .with_fill_mode(rerun::FillMode::Solid),
-                    ),
-                    Geometry::Cylinder { radius_m, length_m } => s.log_static(
-                        path.as_str(),
-                        &Cylinders3D::from_lengths_and_radii(
-                            [*length_m as f32],
-                            [*radius_m as f32],
-                        )
-                        .with_centers([at(t)])
-                        .with_quaternions([rot])
-                        .with_colors([color])
-                        .with_fill_mode(rerun::FillMode::Solid),
-                    ),
-                    Geometry::Capsule { radius_m, length_m } => s.log_static(
-                        path.as_str(),
-                        // Rerun's capsule starts at its translation; URDF's is centred.
-                        &Capsules3D::from_lengths_and_radii([*length_m as f32], [*radius_m as f32])
-                            .with_translations([at(t + q * Vector3::new(
-                                0.0,
-                                0.0,
-                                -0.5 * length_m,
-                            ))])
-                            .with_quaternions([rot])
-                            .with_colors([color]),
-                    ),
-                    Geometry::Sphere { radius_m } => s.log_static(
-                        path.as_str(),
-                        &Ellipsoids3D::from_radii([*radius_m as f32])
-                            .with_centers([at(t)])
-                            .with_colors([color])
-                            .with_fill_mode(rerun::FillMode::Solid),
-                    ),
+                match &v.geometry {
+                    Geometry::Box { size_m } => shapes.boxes.push((
+                        [size_m.x as f32, size_m.y as f32, size_m.z as f32],
+                        point(t),
+                        rot,
+                        color,
+                    )),
+                    Geometry::Cylinder { radius_m, length_m } => shapes.cylinders.push((
+                        *length_m as f32,
+                        *radius_m as f32,
+                        point(t),
+                        rot,
+                        color,
+                    )),
+                    // Rerun's capsule starts at its translation; URDF's is centred.
+                    Geometry::Capsule { radius_m, length_m } => shapes.capsules.push((
+                        *length_m as f32,
+                        *radius_m as f32,
+                        point(t + q * Vector3::new(0.0, 0.0, -0.5 * length_m)),
+                        rot,
+                        color,
+                    )),
+                    Geometry::Sphere { radius_m } => {
+                        shapes.spheres.push((*radius_m as f32, point(t), color));
+                    }
                     Geometry::Mesh { filename, .. } => {
                         if !mesh_warned {
                             mesh_warned = true;
@@ -224,10 +209,8 @@ impl<'a> ArmLogger<'a> {
                                 link.name
                             );
                         }
-                        Ok(())
                     }
-                };
-                rec.report(&path, logged);
+                }
             }
         }
         // Pulleys: every pulley on a joint axis, in the child link's frame (whose
@@ -246,35 +229,29 @@ impl<'a> ArmLogger<'a> {
                         .map(|r| r.radius_m),
                 );
             }
-            if radii.is_empty() {
-                continue;
-            }
             let axis = joint.axis.into_inner();
             let rot = UnitQuaternion::rotation_between(&Vector3::z(), &axis).unwrap_or_else(|| {
                 UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
             });
             let width = 0.02 * self.scale_m;
             let n = radii.len();
-            let centers: Vec<[f32; 3]> = (0..n)
-                .map(|i| {
-                    let c = axis * (i as f64 - 0.5 * (n as f64 - 1.0)) * 1.5 * width;
-                    [c.x as f32, c.y as f32, c.z as f32]
-                })
-                .collect();
-            let path = format!("/world/arm/{}/pulleys", spec.links[joint.child_link].name);
-            rec.report(
-                &path,
-                s.log_static(
-                    path.as_str(),
-                    &Cylinders3D::from_lengths_and_radii(
-                        vec![width as f32; n],
-                        radii.iter().map(|r| *r as f32),
-                    )
-                    .with_centers(centers)
-                    .with_quaternions(vec![RotationQuat::from(quat(&rot)); n])
-                    .with_colors(vec![Color::from_rgb(120, 120, 130); n]),
-                ),
-            );
+            for (i, r) in radii.iter().enumerate() {
+                let c = axis * (i as f64 - 0.5 * (n as f64 - 1.0)) * 1.5 * width;
+                shapes[joint.child_link].cylinders.push((
+                    width as f32,
+                    *r as f32,
+                    point(c),
+                    RotationQuat::from(quat(&rot)),
+                    Color::from_rgb(120, 120, 130),
+                ));
+            }
+        }
+        for (link, shapes) in spec.links.iter().zip(&shapes) {
+            let path = format!("/world/arm/{}", link.name);
+            let archetypes = shapes.archetypes();
+            if !archetypes.is_empty() {
+                rec.report(&path, s.log_static(path.as_str(), &archetypes));
+            }
         }
         let np = self.arm.pairs.len();
         rec.report(
@@ -445,6 +422,69 @@ impl<'a> ArmLogger<'a> {
         }
         self.points_m = points;
     }
+}
+
+/// The static shapes of one link, by kind: `(size or length and radius, centre or
+/// start, rotation, colour)` in the link frame.
+#[derive(Debug, Clone, Default)]
+struct LinkShapes {
+    boxes: Vec<([f32; 3], [f32; 3], RotationQuat, Color)>,
+    cylinders: Vec<(f32, f32, [f32; 3], RotationQuat, Color)>,
+    capsules: Vec<(f32, f32, [f32; 3], RotationQuat, Color)>,
+    spheres: Vec<(f32, [f32; 3], Color)>,
+}
+
+impl LinkShapes {
+    /// One archetype per kind present (logged together: one row, one chunk).
+    fn archetypes(&self) -> Vec<Box<dyn rerun::AsComponents>> {
+        let mut out: Vec<Box<dyn rerun::AsComponents>> = Vec::new();
+        if !self.boxes.is_empty() {
+            out.push(Box::new(
+                Boxes3D::from_sizes(self.boxes.iter().map(|b| b.0))
+                    .with_centers(self.boxes.iter().map(|b| b.1))
+                    .with_quaternions(self.boxes.iter().map(|b| b.2))
+                    .with_colors(self.boxes.iter().map(|b| b.3))
+                    .with_fill_mode(rerun::FillMode::Solid),
+            ));
+        }
+        if !self.cylinders.is_empty() {
+            out.push(Box::new(
+                Cylinders3D::from_lengths_and_radii(
+                    self.cylinders.iter().map(|c| c.0),
+                    self.cylinders.iter().map(|c| c.1),
+                )
+                .with_centers(self.cylinders.iter().map(|c| c.2))
+                .with_quaternions(self.cylinders.iter().map(|c| c.3))
+                .with_colors(self.cylinders.iter().map(|c| c.4))
+                .with_fill_mode(rerun::FillMode::Solid),
+            ));
+        }
+        if !self.capsules.is_empty() {
+            out.push(Box::new(
+                Capsules3D::from_lengths_and_radii(
+                    self.capsules.iter().map(|c| c.0),
+                    self.capsules.iter().map(|c| c.1),
+                )
+                .with_translations(self.capsules.iter().map(|c| c.2))
+                .with_quaternions(self.capsules.iter().map(|c| c.3))
+                .with_colors(self.capsules.iter().map(|c| c.4)),
+            ));
+        }
+        if !self.spheres.is_empty() {
+            out.push(Box::new(
+                Ellipsoids3D::from_radii(self.spheres.iter().map(|e| e.0))
+                    .with_centers(self.spheres.iter().map(|e| e.1))
+                    .with_colors(self.spheres.iter().map(|e| e.2))
+                    .with_fill_mode(rerun::FillMode::Solid),
+            ));
+        }
+        out
+    }
+}
+
+/// `p` as a Rerun point.
+fn point(p: Vector3<f64>) -> [f32; 3] {
+    [p.x as f32, p.y as f32, p.z as f32]
 }
 
 fn quat(q: &UnitQuaternion<f64>) -> Quaternion {
