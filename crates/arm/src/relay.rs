@@ -389,20 +389,9 @@ pub(crate) struct Local<'a> {
     pub state: &'a RelayState,
 }
 
-/// Elongation of span `i` of side `side` at the trial state, m.
+/// Elongation of span `i` of side `side` at the trial state, m (`gq = G_i . q`, the
+/// same for both sides of span `i`).
 fn elongation(
-    c: &CompiledRelays,
-    inp: &Local<'_>,
-    x_m: f64,
-    psi: &[f64],
-    side: usize,
-    i: usize,
-) -> f64 {
-    elongation_at(c, inp, c.gq(i, inp.q), x_m, psi, side, i)
-}
-
-/// [`elongation`] with `G_i . q` given (the same for both sides of span `i`).
-fn elongation_at(
     c: &CompiledRelays,
     inp: &Local<'_>,
     gq: f64,
@@ -439,7 +428,7 @@ fn span_tension(
     side: usize,
     i: usize,
 ) -> (f64, f64, f64) {
-    let e = elongation_at(c, inp, gq, x_m, psi, side, i);
+    let e = elongation(c, inp, gq, x_m, psi, side, i);
     let strain = e * c.inv_span_length[i];
     let (f, k, _) = stepper.tension_piece(&prep[side * c.spans() + i], strain);
     (f, k * c.inv_span_length[i], strain)
@@ -467,7 +456,7 @@ fn span_tensions(
     if inp.constant_force_n.is_some() && sc.k[0] + sc.k[ns] == 0.0 {
         // Both motor-side spans slack: the carriage takes up the slack first.
         let need = |side: usize| {
-            let e = elongation(c, inp, *x_m, &sc.psi1, side, 0) - *x_m;
+            let e = elongation(c, inp, c.gq(0, inp.q), *x_m, &sc.psi1, side, 0) - *x_m;
             sc.prep[side * ns].slack_strain() * c.span_length_m[0] - e
         };
         *x_m = need(0).min(need(1)) + 1e-12 * c.span_length_m.iter().sum::<f64>();

@@ -1050,7 +1050,8 @@ impl DrivenArm {
                 // Wanner's stopping rule for simplified Newton). The first chord update
                 // of a step takes the rate measured last (on a younger matrix: scaled
                 // up by the age ratio).
-                let rate = if last_update.is_finite() {
+                let measured = last_update.is_finite();
+                let rate = if measured {
                     sc.chord_rate = update / last_update;
                     sc.chord_rate_age = sc.age;
                     sc.chord_rate
@@ -1059,9 +1060,7 @@ impl DrivenArm {
                 };
                 // Above the tolerance only on a rate measured in this step (a rate
                 // kept from an earlier step may have been measured on round-off).
-                let measured = last_update.is_finite();
-                small = !guarded
-                    && (small || (measured && update <= CHORD_ACCEPT_UPDATE))
+                small = (small || (measured && update <= CHORD_ACCEPT_UPDATE))
                     && rate < 0.5
                     && update * rate <= CHORD_ERROR;
             }
