@@ -3,7 +3,7 @@
 prints, as JSON, what every entity holds: row count (temporal rows; static ones
 apart), timelines, components, and for
 scalar series the (time, [values]) pairs (one value per instance of a group of
-series) and the series names. Used by tests/rerun_cli.rs; also handy to
+series) and the series names. Used by tests/cli/rerun_cli.rs; also handy to
 check a recording by hand:
 
     python3 tools/rrd_summary.py run.rrd | python3 -m json.tool | less

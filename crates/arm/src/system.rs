@@ -1334,7 +1334,7 @@ const CHORD_ACCEPT_UPDATE: f64 = 1e3;
 
 /// Steps a kept Newton matrix may start: then a fresh one (a matrix kept over many
 /// steps lets errors far below the tolerance accumulate: 2e-11 rad over 0.6 s in the
-/// zero-friction comparison of tests/relay_friction.rs without this limit, 4e-15 with).
+/// zero-friction comparison of tests/arm/relay_friction.rs without this limit, 4e-15 with).
 const MAX_KEPT_STEPS: u32 = 3;
 
 /// One servo's contribution to the implicit step ([`DrivenArm::servo_row`]).

@@ -348,7 +348,7 @@ impl RigModel {
     /// a constant-force tensioner, the tensioner's potential `-2 T x`. With the input
     /// held still it can only fall (rope dashpots, damping and friction dissipate; the
     /// trapezoidal rule conserves it, backward Euler on the relay pulleys dissipates,
-    /// checked in `tests/relay.rs` to 1e-12 J per step).
+    /// checked in `tests/drive/relay.rs` to 1e-12 J per step).
     pub fn energy_j(&self, st: &RigState) -> f64 {
         let s = &self.spec;
         let mut e = 0.5 * s.output_inertia_kg_m2 * st.output_rate_rad_s.powi(2);

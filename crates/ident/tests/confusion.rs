@@ -12,7 +12,7 @@
 //! parameter setting (index into `settings`, 0 or 1) of each effect. With a filter the
 //! criterion is asserted on the rows that ran.
 //! The small version (relaxation, control + extra_retardation) runs by default in
-//! `tests/loop.rs`.
+//! `crates/ident/tests/ident/diagnose_loop.rs`.
 
 use longreach_drive::effects::{self, DataKind, Effect, REGISTRY};
 use longreach_ident::analysis::{diagnose, Prepared};

@@ -14,7 +14,7 @@
 //!   and the comparisons with measurements; each sends a default blueprint.
 //!
 //! Entity paths are listed in `docs/rerun.md`. Logging only reads simulation states:
-//! it cannot change a result (tested bitwise in `tests/rerun_cli.rs`).
+//! it cannot change a result (tested bitwise in `tests/cli/rerun_cli.rs`).
 
 pub mod arm;
 mod columns;

@@ -133,7 +133,7 @@ fn broken_dataset_fails_clearly_and_writes_nothing() {
 }
 
 /// Issue 3 acceptance on the example sweeps through the CLI (~1-2 min on 2 cores):
-/// `cargo test --test ident_cli -- --ignored --nocapture`.
+/// `cargo test --test cli -- --ignored --nocapture ident_cli::`.
 #[test]
 #[ignore]
 fn stiffening_example_names_the_effect_and_error_falls_3x() {

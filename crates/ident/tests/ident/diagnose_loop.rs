@@ -2,7 +2,7 @@
 //! answer: fit, compare, diagnose, synth, model files.
 //!
 //! Heavier studies are `#[ignore]`d; run them with
-//! `cargo test -p longreach-ident --release --test loop -- --ignored --nocapture`.
+//! `cargo test -p longreach-ident --release --test ident -- --ignored --nocapture diagnose_loop::`.
 
 use std::path::PathBuf;
 

@@ -1,7 +1,7 @@
 //! Relay-pulley friction in the arm transmissions (ropes split into spans at their
 //! relays, relay pulleys with inertia and load-dependent friction).
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

@@ -1,6 +1,6 @@
 //! The driven arm: links, rope pairs, motors and servos integrated together.
 
-mod common;
+use crate::common;
 
 use common::*;
 use longreach_arm::{dynamics, Command, MotorMode, MotorSpec};

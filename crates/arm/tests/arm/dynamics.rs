@@ -1,7 +1,7 @@
 //! Rapier multibody against closed forms and against the independent recursive
 //! Newton-Euler of `longreach_arm::dynamics`.
 
-mod common;
+use crate::common;
 
 use longreach_arm::dynamics::{self, forward_dynamics, link_poses, mass_matrix};
 use longreach_arm::{
@@ -207,7 +207,7 @@ fn energy_drift_arm5_10s_dt_1ms() {
 
 /// The eventual target: < 0.1% energy drift over 10 s at dt = 1 ms. Prints the figure
 /// for several substep counts.
-/// Run: cargo test -p longreach-arm --release --test dynamics -- --ignored --nocapture
+/// Run: cargo test -p longreach-arm --release --test arm -- --ignored --nocapture dynamics::
 #[test]
 #[ignore = "study: energy drift vs substeps against the 0.1% target"]
 fn energy_drift_target_study() {

@@ -1,6 +1,6 @@
 //! URDF loading: the shipped robots, fixed-joint merging, errors and warnings.
 
-mod common;
+use crate::common;
 
 use longreach_arm::dynamics::{mass_matrix, tip_position_m};
 use longreach_arm::{chain_urdf, gravity_torques, load_urdf, parse_urdf, ArmSpec, UrdfError};

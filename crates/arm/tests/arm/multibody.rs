@@ -1,6 +1,6 @@
 //! Behaviour of the rapier model: damping, torque reset, limits, input errors, blow-up.
 
-mod common;
+use crate::common;
 
 use longreach_arm::{load_urdf, parse_urdf, step, ArmError, ArmModel, ArmSpec, ModelOptions};
 

@@ -2,7 +2,7 @@
 //! (URDF -> links, routed rope pair, kinematic motor) gives the frequency response
 //! of the rig plant of crates/drive (its own equations, its own integrator).
 
-mod common;
+use crate::common;
 
 use common::robot_path;
 use longreach_arm::transmission::{MotorMode, MotorSpec, PairSpec, TensionerKind};

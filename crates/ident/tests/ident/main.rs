@@ -1,0 +1,12 @@
+//! Integration tests of this package, linked as one binary (one link and one
+//! executable instead of one per file: CI's build time and disk). Each former
+//! test file is a module; filter with its name, e.g. `-- cyclic::`.
+
+mod cyclic;
+mod dataset_errors;
+mod diagnose_loop;
+mod examples;
+mod fitting;
+mod metrics;
+mod relay_friction;
+mod sensors;
