@@ -30,18 +30,238 @@ use rerun::blueprint::{
 use rerun::components::RotationQuat;
 use rerun::{Boxes3D, Capsules3D, Color, Cylinders3D, Ellipsoids3D, Quaternion, ViewCoordinates};
 
+use std::sync::mpsc;
+use std::thread::JoinHandle;
+
 use crate::{
-    tension_color, Columns, RateGate, Recorder, SeriesId, StripsId, TransformId, SIM_TIME,
+    tension_color, Columns, RateGate, Recorder, SeriesId, Sink, StripsId, TransformId, SIM_TIME,
 };
 
+/// Frames handed to the drawing thread at a time.
+const BATCH_FRAMES: usize = 30;
+
+/// Frames the drawing thread buffers before it sends them to Rerun (two seconds of
+/// simulated time at the default 60 Hz): Rerun encodes them while the run goes on, and
+/// finishing only waits for the last batch (each send costs a fixed encoding effort
+/// per channel, so not every batch is sent on its own).
+const SEND_FRAMES: usize = 120;
+
 /// Logs one driven-arm run; feed it every state with [`ArmLogger::observe`].
+///
+/// The run's thread only copies each logged state (a hundred numbers at 60 frames per
+/// simulated second) and hands batches of them to a drawing thread of its own, which
+/// logs the static scene and the blueprint, computes link poses and rope strips, and
+/// sends the columns to Rerun: on a machine with a free core the drawing costs the run
+/// almost nothing. [`ArmLogger::finish`] (or dropping the logger) waits for the
+/// drawing thread, so that [`Recorder::finish`] closes a complete recording.
 #[derive(Debug)]
 pub struct ArmLogger<'a> {
-    rec: &'a Recorder,
     arm: &'a DrivenArm,
+    gate: RateGate,
+    /// States not yet handed over, [`Layout::width`] values each.
+    batch: Vec<f64>,
+    layout: Layout,
+    frames: usize,
+    /// The channel to the drawing thread and its handle (`None` when not recording).
+    worker: Option<(mpsc::Sender<Vec<f64>>, JoinHandle<()>)>,
+    sink: Sink,
+}
+
+/// Where the values of one logged state sit in a batch: time, joint angles, joint
+/// references, motor angles, motor references, servo torques, rope tensions (`+` of
+/// every pair, then `-`), then the `[+, -]` tensions of every span of every pair.
+#[derive(Debug, Clone)]
+struct Layout {
+    joints: usize,
+    pairs: usize,
+    /// Spans of every pair (1 without relay friction).
+    spans: Vec<usize>,
+}
+
+impl Layout {
+    fn new(arm: &DrivenArm) -> Self {
+        Self {
+            joints: arm.spec.ndofs(),
+            pairs: arm.pairs.len(),
+            spans: arm
+                .pairs
+                .iter()
+                .map(|p| p.relays.as_ref().map_or(1, |c| c.spans()))
+                .collect(),
+        }
+    }
+
+    fn width(&self) -> usize {
+        1 + 2 * self.joints + 5 * self.pairs + 2 * self.spans.iter().sum::<usize>()
+    }
+
+    /// Appends the values of `st` to `out`.
+    fn push(&self, arm: &DrivenArm, st: &DrivenState, out: &mut Vec<f64>) {
+        let np = self.pairs;
+        out.push(st.time_s);
+        out.extend_from_slice(&st.q_rad);
+        out.extend_from_slice(&st.q_ref_rad);
+        out.extend_from_slice(&st.motor_rad[..np]);
+        out.extend_from_slice(&st.motor_ref_rad[..np]);
+        out.extend_from_slice(&st.motor_torque_n_m[..np]);
+        for side in 0..2 {
+            out.extend(st.ropes[..np].iter().map(|r| r[side].tension_n));
+        }
+        for (p, &n) in self.spans.iter().enumerate() {
+            let spans = arm.span_tensions_n(st, p);
+            debug_assert_eq!(spans.len(), n);
+            out.extend(spans.iter().flatten());
+        }
+    }
+}
+
+/// One logged state, read back from a batch (see [`Layout`]).
+struct Frame<'f> {
+    time_s: f64,
+    q_rad: &'f [f64],
+    q_ref_rad: &'f [f64],
+    motor_rad: &'f [f64],
+    motor_ref_rad: &'f [f64],
+    motor_torque_n_m: &'f [f64],
+    /// `+` tensions of every pair, then `-`.
+    tensions_n: &'f [f64],
+    /// `[+, -]` of every span, pair after pair.
+    spans_n: &'f [f64],
+}
+
+impl Layout {
+    fn frame<'f>(&self, v: &'f [f64]) -> Frame<'f> {
+        let (n, np) = (self.joints, self.pairs);
+        let (time, v) = v.split_at(1);
+        let (q_rad, v) = v.split_at(n);
+        let (q_ref_rad, v) = v.split_at(n);
+        let (motor_rad, v) = v.split_at(np);
+        let (motor_ref_rad, v) = v.split_at(np);
+        let (motor_torque_n_m, v) = v.split_at(np);
+        let (tensions_n, spans_n) = v.split_at(2 * np);
+        Frame {
+            time_s: time[0],
+            q_rad,
+            q_ref_rad,
+            motor_rad,
+            motor_ref_rad,
+            motor_torque_n_m,
+            tensions_n,
+            spans_n,
+        }
+    }
+}
+
+impl<'a> ArmLogger<'a> {
+    /// Starts the drawing thread, which logs the static scene of `arm` (visuals,
+    /// pulleys, motors) and the default blueprint, then every state handed to it.
+    pub fn new(rec: &'a Recorder, arm: &'a DrivenArm) -> Self {
+        let layout = Layout::new(arm);
+        let sink = rec.sink().clone();
+        let worker = if rec.is_enabled() {
+            let (tx, rx) = mpsc::channel::<Vec<f64>>();
+            let (drawer_sink, drawer_arm, drawer_layout) =
+                (sink.clone(), arm.clone(), layout.clone());
+            let spawned = std::thread::Builder::new()
+                .name("rerun-arm".into())
+                .spawn(move || {
+                    let mut d = Drawer::new(drawer_sink, drawer_arm);
+                    d.log_static();
+                    let width = drawer_layout.width();
+                    for batch in rx {
+                        for v in batch.chunks_exact(width) {
+                            d.draw(&drawer_layout.frame(v));
+                        }
+                        if d.cols.frames() >= SEND_FRAMES {
+                            d.cols.flush(&d.sink);
+                        } else {
+                            d.cols.flush_when_due(&d.sink);
+                        }
+                    }
+                    d.cols.flush(&d.sink);
+                });
+            match spawned {
+                Ok(handle) => Some((tx, handle)),
+                Err(e) => {
+                    sink.report("starting the drawing thread", Err(e));
+                    None
+                }
+            }
+        } else {
+            None
+        };
+        Self {
+            arm,
+            gate: RateGate::new(rec.hz()),
+            batch: Vec::new(),
+            layout,
+            frames: 0,
+            worker,
+            sink,
+        }
+    }
+
+    /// Logs `st` when it is due at the logging rate (reads it only).
+    pub fn observe(&mut self, st: &DrivenState) {
+        let Some((tx, _)) = &self.worker else {
+            return;
+        };
+        if !self.gate.due(st.time_s) {
+            return;
+        }
+        self.layout.push(self.arm, st, &mut self.batch);
+        self.frames += 1;
+        if self.batch.len() >= BATCH_FRAMES * self.layout.width() {
+            let batch = std::mem::take(&mut self.batch);
+            if tx.send(batch).is_err() {
+                // The drawing thread ended early (it panicked): say so when joining.
+                self.close();
+            }
+        }
+    }
+
+    /// Frames logged so far.
+    pub fn frames(&self) -> usize {
+        self.frames
+    }
+
+    /// Hands over what is buffered and waits for the drawing thread to send it.
+    pub fn finish(mut self) -> usize {
+        self.close();
+        self.frames
+    }
+
+    fn close(&mut self) {
+        let Some((tx, handle)) = self.worker.take() else {
+            return;
+        };
+        let batch = std::mem::take(&mut self.batch);
+        if !batch.is_empty() {
+            // A failed send means the thread is gone: the join below reports it.
+            let _ = tx.send(batch);
+        }
+        drop(tx);
+        if handle.join().is_err() {
+            self.sink
+                .report("drawing the arm", Err("the drawing thread panicked"));
+        }
+    }
+}
+
+impl Drop for ArmLogger<'_> {
+    fn drop(&mut self) {
+        self.close();
+    }
+}
+
+/// The drawing thread's side of an [`ArmLogger`]: kinematics, rope strips and the
+/// buffered columns.
+#[derive(Debug)]
+struct Drawer {
+    sink: Sink,
+    arm: DrivenArm,
     dynamics: FastDynamics,
     kin: Kin,
-    gate: RateGate,
     cols: Columns,
     /// Kinematics at the commanded angles (for the tip error) and those angles.
     kin_ref: Kin,
@@ -61,13 +281,11 @@ pub struct ArmLogger<'a> {
     points_m: Vec<[f64; 3]>,
     /// Drawing scale, m ([`draw_scale_m`]).
     scale_m: f64,
-    frames: usize,
 }
 
-impl<'a> ArmLogger<'a> {
-    /// Logs the static scene of `arm` (visuals, pulleys, motors) and the default
-    /// blueprint, and prepares the per-frame channels.
-    pub fn new(rec: &'a Recorder, arm: &'a DrivenArm) -> Self {
+impl Drawer {
+    /// Prepares the channels of `arm`.
+    fn new(sink: Sink, arm: DrivenArm) -> Self {
         let dynamics = FastDynamics::new(&arm.spec);
         let kin = dynamics.make_kin();
         let mut cols = Columns::on_duration(SIM_TIME);
@@ -75,7 +293,7 @@ impl<'a> ArmLogger<'a> {
             .iter()
             .map(|l| cols.pose(format!("/world/arm/{}", l.name)))
             .collect();
-        let scale_m = draw_scale_m(arm);
+        let scale_m = draw_scale_m(&arm);
         let rope_radius_m = 0.004 * scale_m;
         let ropes = cols.strips("/world/ropes", rope_radius_m);
         let joint_name = |p: usize| arm.spec.joints[arm.pairs[p].spec.joint].name.clone();
@@ -125,14 +343,13 @@ impl<'a> ArmLogger<'a> {
             })
             .collect();
         let kin_ref = dynamics.make_kin();
-        let me = Self {
-            rec,
+        Self {
+            sink,
             arm,
             dynamics,
             kin,
             kin_ref,
             q_ref_rad: Vec::new(),
-            gate: RateGate::new(rec.hz()),
             cols,
             links,
             ropes,
@@ -145,16 +362,11 @@ impl<'a> ArmLogger<'a> {
             rope_pulleys,
             points_m: Vec::new(),
             scale_m,
-            frames: 0,
-        };
-        if rec.is_enabled() {
-            me.log_static();
         }
-        me
     }
 
     fn log_static(&self) {
-        let rec = self.rec;
+        let rec = &self.sink;
         let s = rec.stream();
         rec.report(
             "view coordinates",
@@ -304,14 +516,10 @@ impl<'a> ArmLogger<'a> {
         rec.report("static scene", s.flush_async());
     }
 
-    /// Logs `st` when it is due at the logging rate (reads it only).
-    pub fn observe(&mut self, st: &DrivenState) {
-        if !self.rec.is_enabled() || !self.gate.due(st.time_s) {
-            return;
-        }
-        let arm = self.arm;
+    /// Adds one logged state to the columns.
+    fn draw(&mut self, st: &Frame) {
         self.cols.frame_at_s(st.time_s);
-        self.dynamics.kinematics(&st.q_rad, &mut self.kin);
+        self.dynamics.kinematics(st.q_rad, &mut self.kin);
         for (i, id) in self.links.iter().enumerate() {
             let r = Rotation3::from_matrix_unchecked(self.kin.rot[i + 1]);
             let q = UnitQuaternion::from_rotation_matrix(&r);
@@ -323,16 +531,19 @@ impl<'a> ArmLogger<'a> {
         // ideal pair is one strip per rope side; relay friction splits it where the
         // span tensions differ).
         let mut strips: Vec<(Vec<[f64; 3]>, [u8; 4])> = Vec::new();
-        for (p, pair) in arm.pairs.iter().enumerate() {
-            let full = 2.0 * pair.spec.preload_n;
+        let mut spans_n = st.spans_n;
+        for p in 0..self.arm.pairs.len() {
+            let full = 2.0 * self.arm.pairs[p].spec.preload_n;
             // Spans motor side first; a pair without relay friction has one tension
             // along its whole rope.
-            let spans = arm.span_tensions_n(st, p);
+            let count = self.arm.pairs[p].relays.as_ref().map_or(1, |c| c.spans());
+            let (spans, rest) = spans_n.split_at(2 * count);
+            spans_n = rest;
             for (side, sign) in [1.0, -1.0].into_iter().enumerate() {
                 self.rope_points(p, sign);
                 let mut current: Option<(Vec<[f64; 3]>, [u8; 4])> = None;
                 for (i, w) in self.points_m.windows(2).enumerate() {
-                    let color = tension_color(spans[i.min(spans.len() - 1)][side], full);
+                    let color = tension_color(spans[2 * i.min(count - 1) + side], full);
                     match &mut current {
                         Some((points, c)) if *c == color => points.push(w[1]),
                         _ => {
@@ -345,52 +556,31 @@ impl<'a> ArmLogger<'a> {
             }
         }
         self.cols.push_strips(self.ropes, strips);
-        let np = arm.pairs.len();
         self.cols.push_group(
             self.joint_angles,
-            st.q_rad.iter().chain(&st.q_ref_rad).copied(),
+            st.q_rad.iter().chain(st.q_ref_rad).copied(),
         );
         self.cols.push_group(
             self.motor_angles,
-            st.motor_rad[..np]
-                .iter()
-                .chain(&st.motor_ref_rad[..np])
-                .copied(),
+            st.motor_rad.iter().chain(st.motor_ref_rad).copied(),
         );
-        self.cols.push_group(
-            self.motor_torques,
-            st.motor_torque_n_m[..np].iter().copied(),
-        );
-        self.cols.push_group(
-            self.tensions,
-            (0..2).flat_map(|side| st.ropes[..np].iter().map(move |r| r[side].tension_n)),
-        );
+        self.cols
+            .push_group(self.motor_torques, st.motor_torque_n_m.iter().copied());
+        self.cols
+            .push_group(self.tensions, st.tensions_n.iter().copied());
         if self.q_ref_rad != st.q_ref_rad {
-            self.dynamics.kinematics(&st.q_ref_rad, &mut self.kin_ref);
-            self.q_ref_rad.clone_from(&st.q_ref_rad);
+            self.dynamics.kinematics(st.q_ref_rad, &mut self.kin_ref);
+            self.q_ref_rad = st.q_ref_rad.to_vec();
         }
         let tip = self.tip_m(&self.kin);
         let err = (tip - self.tip_m(&self.kin_ref)).norm();
         self.cols.push(self.tip_error, err);
-        self.frames += 1;
-        self.cols.flush_when_due(self.rec);
     }
 
     /// World position of the arm's tip frame from kinematics `kin`, m.
     fn tip_m(&self, kin: &Kin) -> Vector3<f64> {
         let tip = &self.arm.spec.tip;
         kin.origin[tip.link] + kin.rot[tip.link] * tip.link_from_frame.translation.vector
-    }
-
-    /// Frames logged so far.
-    pub fn frames(&self) -> usize {
-        self.frames
-    }
-
-    /// Sends what is buffered.
-    pub fn finish(mut self) -> usize {
-        self.cols.flush(self.rec);
-        self.frames
     }
 
     /// World points of rope `sign` (+1 / -1) of pair `p` into `self.points_m`: motor
@@ -505,7 +695,7 @@ mod tests {
     fn the_tip_from_the_logger_kinematics_is_the_arm_tip() {
         let arm = longreach_arm::anchor_chain(6, longreach_rope::LawKind::Elastic, 1e-3).unwrap();
         let rec = Recorder::off();
-        let mut logger = ArmLogger::new(&rec, &arm);
+        let mut logger = Drawer::new(rec.sink().clone(), arm.clone());
         for k in 0..5 {
             let q: Vec<f64> = (0..arm.spec.ndofs())
                 .map(|j| 0.3 * ((k * 7 + j * 3) as f64).sin())
@@ -515,5 +705,68 @@ mod tests {
             assert!(d < 1e-12, "pose {k}: {d} m");
             assert!(arm.tip_m(&q).norm() > 1.0);
         }
+    }
+
+    #[test]
+    fn a_state_handed_to_the_drawing_thread_reads_back_unchanged() {
+        // Relay friction: pairs of 1 to 5 spans, so the layout's offsets matter.
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../scenarios/arm_dyneema2_base_step_relay_friction.toml");
+        let arm = longreach_arm::scenario::load(&path).unwrap().arm;
+        let layout = Layout::new(&arm);
+        assert!(layout.spans.iter().any(|&s| s > 1), "{:?}", layout.spans);
+        let mut st = arm.initial_state();
+        for _ in 0..600 {
+            arm.step(&mut st).unwrap();
+        }
+        let mut batch = vec![-1.0];
+        layout.push(&arm, &st, &mut batch);
+        assert_eq!(batch.len(), 1 + layout.width());
+        let f = layout.frame(&batch[1..]);
+        let np = arm.pairs.len();
+        assert_eq!(f.time_s, st.time_s);
+        assert_eq!(f.q_rad, &st.q_rad[..]);
+        assert_eq!(f.q_ref_rad, &st.q_ref_rad[..]);
+        assert_eq!(f.motor_rad, &st.motor_rad[..np]);
+        assert_eq!(f.motor_ref_rad, &st.motor_ref_rad[..np]);
+        assert_eq!(f.motor_torque_n_m, &st.motor_torque_n_m[..np]);
+        for p in 0..np {
+            assert_eq!(f.tensions_n[p], st.ropes[p][0].tension_n);
+            assert_eq!(f.tensions_n[np + p], st.ropes[p][1].tension_n);
+        }
+        let spans: Vec<f64> = (0..np)
+            .flat_map(|p| arm.span_tensions_n(&st, p))
+            .flatten()
+            .collect();
+        assert_eq!(f.spans_n, &spans[..]);
+        // The base step moved the base joint and loaded the ropes differently per span.
+        assert!(st.q_rad[0] > 0.01, "{}", st.q_rad[0]);
+        assert!(spans.windows(2).any(|w| w[0] != w[1]));
+    }
+
+    #[test]
+    fn a_logger_dropped_without_finish_still_closes_a_complete_recording() {
+        let arm = longreach_arm::anchor_chain(3, longreach_rope::LawKind::Elastic, 1e-3).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.rrd");
+        let rec = Recorder::start(
+            "t",
+            &crate::Target::Save(Some(path.clone())),
+            dir.path(),
+            100.0,
+        )
+        .unwrap();
+        let mut st = arm.initial_state();
+        {
+            let mut logger = ArmLogger::new(&rec, &arm);
+            for _ in 0..1000 {
+                arm.step(&mut st).unwrap();
+                logger.observe(&st);
+            }
+            // 1 s at 100 Hz: the first step (1 ms), then the steps at 10, 20, ... 1000 ms.
+            assert_eq!(logger.frames(), 101);
+        }
+        assert_eq!(rec.finish(), Some(path.clone()));
+        assert!(std::fs::metadata(&path).unwrap().len() > 1000);
     }
 }

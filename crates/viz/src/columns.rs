@@ -7,7 +7,7 @@ use rerun::{
     Color, LineStrip3D, LineStrips3D, Quaternion, Scalars, SeriesLines, TimeColumn, Transform3D,
 };
 
-use crate::Recorder;
+use crate::Sink;
 
 /// Chooses the frames to log at `hz` frames per simulated second: the first state at
 /// or after every multiple of `1/hz` (and the first state of the run).
@@ -234,7 +234,7 @@ impl Columns {
 
     /// [`Columns::flush`] when a quarter of a second (wall clock) has passed since the
     /// last send: call it after every frame of a long run.
-    pub fn flush_when_due(&mut self, rec: &Recorder) {
+    pub fn flush_when_due(&mut self, rec: &Sink) {
         if self.last_send.elapsed() >= SEND_INTERVAL {
             self.flush(rec);
         }
@@ -242,7 +242,7 @@ impl Columns {
 
     /// Sends every buffered frame to `rec` and empties the buffers (keeping the
     /// channels). A channel that missed a frame is a bug: it is reported, not sent.
-    pub fn flush(&mut self, rec: &Recorder) {
+    pub fn flush(&mut self, rec: &Sink) {
         self.last_send = Instant::now();
         let n = self.frames();
         if n == 0 {
@@ -270,7 +270,7 @@ impl Columns {
         }
     }
 
-    fn send(&mut self, rec: &Recorder, n: usize) {
+    fn send(&mut self, rec: &Sink, n: usize) {
         let stream = rec.stream();
         if !self.names_sent {
             // Once per recording, static: series names and strip radii (one radius for
@@ -390,7 +390,7 @@ mod tests {
             c.push_strips(s, [([[0.0; 3], [1.0; 3]], [1, 2, 3, 255])]);
         }
         assert_eq!(c.frames(), 3);
-        c.flush(&Recorder::off());
+        c.flush(crate::Recorder::off().sink());
         assert_eq!(c.frames(), 0);
         c.frame_at_s(4.0);
         c.push(a, 1.0);

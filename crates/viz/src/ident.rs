@@ -67,7 +67,7 @@ pub fn log_comparison(
                 );
             }
         }
-        cols.flush(rec);
+        cols.flush(rec.sink());
         let mut freq = Columns::on_sequence(FREQUENCY_TIMELINE);
         let gm = freq.series(format!("/frequency/{name}/gain_db/measured"));
         let gs = freq.series(format!("/frequency/{name}/gain_db/model"));
@@ -81,7 +81,7 @@ pub fn log_comparison(
             freq.push(ps, f.phase_model_deg);
         }
         let has_freq = freq.frames() > 0;
-        freq.flush(rec);
+        freq.flush(rec.sink());
         let mut views = vec![
             TimeSeriesView::new(format!("{} measured vs model", run.name))
                 .with_origin(format!("/compare/{name}"))

@@ -1,8 +1,9 @@
 //! Where a recording goes, and the stream that sends it there.
 
-use std::cell::Cell;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Duration;
 
 use rerun::{RecordingStream, RecordingStreamBuilder};
@@ -82,12 +83,48 @@ impl Target {
 /// The recording stream of one command, with its failure reported once.
 #[derive(Debug)]
 pub struct Recorder {
-    rec: RecordingStream,
+    sink: Sink,
     target: Target,
     /// `(temporary, final)` paths of a file recording.
     file: Option<(PathBuf, PathBuf)>,
-    warned: Cell<bool>,
     hz: f64,
+}
+
+/// The logging half of a [`Recorder`]: the stream and the say-it-once flag. Cheap to
+/// clone and usable from another thread (the arm logger draws on one of its own);
+/// every clone shares the flag, so a failure is still reported once.
+#[derive(Debug, Clone)]
+pub struct Sink {
+    stream: RecordingStream,
+    warned: Arc<AtomicBool>,
+}
+
+impl Sink {
+    /// True when something is being recorded.
+    pub fn is_enabled(&self) -> bool {
+        self.stream.is_enabled()
+    }
+
+    /// The stream (for the loggers of this crate).
+    pub(crate) fn stream(&self) -> &RecordingStream {
+        &self.stream
+    }
+
+    /// Marks a failure as reported; true when one was reported before.
+    fn warn_once(&self) -> bool {
+        self.warned.swap(true, Ordering::Relaxed)
+    }
+
+    /// Reports a logging failure once; later failures are silent.
+    pub(crate) fn report<E: std::fmt::Display>(&self, what: &str, result: Result<(), E>) {
+        if let Err(e) = result {
+            if !self.warn_once() {
+                eprintln!(
+                    "rerun: {what} failed ({e}); the run goes on, the recording may be incomplete"
+                );
+            }
+        }
+    }
 }
 
 impl Recorder {
@@ -141,10 +178,12 @@ impl Recorder {
             },
         };
         Ok(Self {
-            rec,
+            sink: Sink {
+                stream: rec,
+                warned: Arc::new(AtomicBool::new(false)),
+            },
             target: target.clone(),
             file,
-            warned: Cell::new(false),
             hz,
         })
     }
@@ -156,17 +195,19 @@ impl Recorder {
 
     fn disabled(target: Target, hz: f64, warned: bool) -> Self {
         Self {
-            rec: RecordingStream::disabled(),
+            sink: Sink {
+                stream: RecordingStream::disabled(),
+                warned: Arc::new(AtomicBool::new(warned)),
+            },
             target,
             file: None,
-            warned: Cell::new(warned),
             hz,
         }
     }
 
     /// True when something is being recorded.
     pub fn is_enabled(&self) -> bool {
-        self.rec.is_enabled()
+        self.sink.is_enabled()
     }
 
     /// Logging rate, frames per simulated second.
@@ -174,29 +215,28 @@ impl Recorder {
         self.hz
     }
 
+    /// The stream and the say-it-once flag, to log from (also from another thread).
+    pub fn sink(&self) -> &Sink {
+        &self.sink
+    }
+
     /// The stream (for the loggers of this crate).
     pub(crate) fn stream(&self) -> &RecordingStream {
-        &self.rec
+        self.sink.stream()
     }
 
     /// Reports a logging failure once; later failures are silent.
     pub(crate) fn report<E: std::fmt::Display>(&self, what: &str, result: Result<(), E>) {
-        if let Err(e) = result {
-            if !self.warned.replace(true) {
-                eprintln!(
-                    "rerun: {what} failed ({e}); the run goes on, the recording may be incomplete"
-                );
-            }
-        }
+        self.sink.report(what, result);
     }
 
     /// Flushes everything; for a file, moves the finished recording to its name and
     /// returns that path. A viewer that did not answer is reported once.
     pub fn finish(self) -> Option<PathBuf> {
-        if !self.rec.is_enabled() {
+        if !self.sink.is_enabled() {
             return None;
         }
-        let flushed = self.rec.flush_with_timeout(Duration::from_secs(5));
+        let flushed = self.sink.stream.flush_with_timeout(Duration::from_secs(5));
         if let Err(e) = &flushed {
             let addr = match &self.target {
                 Target::Connect(a) => Some(a.clone()),
@@ -206,8 +246,8 @@ impl Recorder {
             if let Some(addr) = addr {
                 // Disconnecting (or dropping) would wait for the viewer forever: leave
                 // the stream to the process exit instead.
-                let warned = self.warned.replace(true);
-                std::mem::forget(self.rec);
+                let warned = self.sink.warn_once();
+                std::mem::forget(self.sink);
                 if !warned {
                     eprintln!(
                         "rerun: the viewer at {addr} did not take the recording ({e}); is it running \
@@ -219,7 +259,7 @@ impl Recorder {
                 self.report("writing the recording", Err::<(), _>(e.to_string()));
             }
         }
-        self.rec.disconnect();
+        self.sink.stream.disconnect();
         let (tmp, final_path) = self.file?;
         match std::fs::rename(&tmp, &final_path) {
             Ok(()) => Some(final_path),

@@ -92,7 +92,7 @@ pub fn log_bode(rec: &Recorder, spec: &RigSpec, runs: &[(f64, &RigTrace, &[Frequ
             };
             cols.push_strips(spokes, [spoke(0.0, r1, th), spoke(l, r2, ph)]);
         }
-        cols.flush(rec);
+        cols.flush(rec.sink());
         let mut freq = Columns::on_sequence(FREQUENCY_TIMELINE);
         let g = [
             freq.series(format!("/bode/{run}/gain_db/simulated")),
@@ -111,7 +111,7 @@ pub fn log_bode(rec: &Recorder, spec: &RigSpec, runs: &[(f64, &RigTrace, &[Frequ
                 freq.push(*id, v);
             }
         }
-        freq.flush(rec);
+        freq.flush(rec.sink());
         tabs.push(
             Vertical::new([
                 Spatial3DView::new(format!("{run} rig"))
