@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, Result};
 use clap::Args;
-use longreach_viz::{Recorder, Target, DEFAULT_HZ};
+use longreach_viz::{Closing, Recorder, Target, DEFAULT_HZ};
 
 /// Streaming to the Rerun viewer.
 #[derive(Debug, Clone, Args)]
@@ -50,7 +50,16 @@ pub fn default_rrd(dir: Option<&Path>, input: &Path, suffix: &str) -> PathBuf {
 
 /// Finishes a recording and says where it went.
 pub fn finish(rec: Recorder) {
-    if let Some(path) = rec.finish() {
+    said(rec.finish());
+}
+
+/// Says where a recording closed in the background went, once it is closed.
+pub fn finished(closing: Closing) {
+    said(closing.wait());
+}
+
+fn said(path: Option<PathBuf>) {
+    if let Some(path) = path {
         println!(
             "wrote Rerun recording {} (open it with `rerun {}`; viewer version {})",
             path.display(),

@@ -69,9 +69,11 @@ pub fn run(args: &RunArgs) -> Result<ExitCode> {
     );
     bar.finish_and_clear();
     let wall = t0.elapsed().as_secs_f64();
-    // The recording of a failed run is kept: it shows how it failed.
+    // The recording of a failed run is kept: it shows how it failed. It is closed in
+    // the background while the tables and files below are written (dropping `closing`
+    // on an early return waits for it too).
     viewer.finish();
-    rerun_args::finish(rec);
+    let closing = rec.finish_in_background();
     let (trace, metrics) =
         result.with_context(|| format!("running {}", args.scenario.display()))?;
 
@@ -159,5 +161,6 @@ pub fn run(args: &RunArgs) -> Result<ExitCode> {
     if let Some(path) = &args.json {
         write_atomic(path, json.as_bytes())?;
     }
+    rerun_args::finished(closing);
     Ok(ExitCode::SUCCESS)
 }

@@ -1,6 +1,7 @@
 //! Where the time of a recorded arm run goes: the run without logging, then with an
-//! `.rrd` at 60 Hz split into open, static scene (+ blueprint), run, finish (flush and
-//! close: waits for Rerun's file writer); and the CPU time of the whole process (every
+//! `.rrd` at 60 Hz split into open, static scene (+ blueprint), run, join (the logger's
+//! drawing thread sends its last frames), close (waits for Rerun's file writer: the last
+//! chunks and the file's footer); and the CPU time of the whole process (every
 //! thread: the writer works beside the run) for both. Prints the minimum and the
 //! median over the repetitions (the minimum is the robust figure on a busy machine).
 //!
@@ -48,9 +49,9 @@ fn main() {
     };
     let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
     let names = [
-        "off", "open", "static", "run", "finish", "total", "cpu off", "cpu rec",
+        "off", "open", "static", "run", "join", "close", "total", "cpu off", "cpu rec",
     ];
-    let mut rows: Vec<[f64; 8]> = Vec::new();
+    let mut rows: Vec<[f64; 9]> = Vec::new();
     for _ in 0..reps {
         let c0 = cpu_ms();
         let t = Instant::now();
@@ -66,6 +67,7 @@ fn main() {
         run(&mut |st| viewer.observe(st));
         let t3 = Instant::now();
         viewer.finish();
+        let tj = Instant::now();
         rec.finish();
         let t4 = Instant::now();
         let c2 = cpu_ms();
@@ -74,7 +76,8 @@ fn main() {
             ms(t0, t1),
             ms(t1, t2),
             ms(t2, t3),
-            ms(t3, t4),
+            ms(t3, tj),
+            ms(tj, t4),
             ms(t0, t4),
             c1 - c0,
             c2 - c1,

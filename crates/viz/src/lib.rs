@@ -25,7 +25,7 @@ pub mod rig;
 
 pub use columns::{Columns, RateGate, SeriesId, StripsId, TransformId};
 pub use error::VizError;
-pub use recorder::{Recorder, Sink, Target, DEFAULT_HZ, SDK_VERSION};
+pub use recorder::{Closing, Recorder, Sink, Target, DEFAULT_HZ, SDK_VERSION};
 
 /// Name of the simulated-time timeline every time series and pose is logged on.
 pub const SIM_TIME: &str = "sim_time";

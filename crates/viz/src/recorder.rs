@@ -230,6 +230,28 @@ impl Recorder {
         self.sink.report(what, result);
     }
 
+    /// [`Recorder::finish`] on a thread of its own, so that a command can write its
+    /// other outputs while Rerun encodes the last frames and writes the file's footer
+    /// (a fixed few milliseconds per recording); wait on the result before exiting.
+    pub fn finish_in_background(self) -> Closing {
+        let slot = std::sync::Arc::new(std::sync::Mutex::new(Some(self)));
+        let theirs = std::sync::Arc::clone(&slot);
+        let spawned = std::thread::Builder::new()
+            .name("rerun-close".into())
+            .spawn(move || {
+                let rec = theirs.lock().ok().and_then(|mut r| r.take());
+                rec.and_then(Recorder::finish)
+            });
+        match spawned {
+            Ok(handle) => Closing(Some(handle), None),
+            // No thread: close here.
+            Err(_) => {
+                let rec = slot.lock().ok().and_then(|mut r| r.take());
+                Closing(None, rec.and_then(Recorder::finish))
+            }
+        }
+    }
+
     /// Flushes everything; for a file, moves the finished recording to its name and
     /// returns that path. A viewer that did not answer is reported once.
     pub fn finish(self) -> Option<PathBuf> {
@@ -272,6 +294,37 @@ impl Recorder {
                 None
             }
         }
+    }
+}
+
+/// A recording being closed on a thread of its own ([`Recorder::finish_in_background`]).
+/// [`Closing::wait`] (or dropping it) waits until the file is complete and renamed.
+#[derive(Debug)]
+pub struct Closing(
+    Option<std::thread::JoinHandle<Option<PathBuf>>>,
+    Option<PathBuf>,
+);
+
+impl Closing {
+    /// Waits for the recording to be closed; what [`Recorder::finish`] returns.
+    pub fn wait(mut self) -> Option<PathBuf> {
+        self.join()
+    }
+
+    fn join(&mut self) -> Option<PathBuf> {
+        match self.0.take() {
+            Some(handle) => handle.join().unwrap_or_else(|_| {
+                eprintln!("rerun: closing the recording failed (its thread panicked)");
+                None
+            }),
+            None => self.1.take(),
+        }
+    }
+}
+
+impl Drop for Closing {
+    fn drop(&mut self) {
+        self.join();
     }
 }
 
@@ -359,5 +412,20 @@ mod tests {
         assert!(!path.exists(), "written beside its name until finished");
         assert_eq!(r.finish(), Some(path.clone()));
         assert!(std::fs::metadata(&path).unwrap().len() > 0);
+        // Closed in the background: complete and renamed once waited for, or dropped.
+        for (k, wait) in [(0, true), (1, false)] {
+            let path = dir.path().join(format!("bg{k}.rrd"));
+            let r = Recorder::start("t", &Target::Save(Some(path.clone())), Path::new("x"), 30.0)
+                .unwrap();
+            r.report("test", Ok::<(), String>(()));
+            let closing = r.finish_in_background();
+            if wait {
+                assert_eq!(closing.wait(), Some(path.clone()));
+            } else {
+                drop(closing);
+            }
+            assert!(std::fs::metadata(&path).unwrap().len() > 0, "{k}");
+            assert!(!temp_beside(&path).exists(), "{k}");
+        }
     }
 }
