@@ -708,6 +708,7 @@ mod tests {
     }
 
     #[test]
+    #[allow(clippy::float_cmp)] // a copy: bit for bit
     fn a_state_handed_to_the_drawing_thread_reads_back_unchanged() {
         // Relay friction: pairs of 1 to 5 spans, so the layout's offsets matter.
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
