@@ -113,23 +113,8 @@ impl Layout {
             out.extend(spans.iter().flatten());
         }
     }
-}
 
-/// One logged state, read back from a batch (see [`Layout`]).
-struct Frame<'f> {
-    time_s: f64,
-    q_rad: &'f [f64],
-    q_ref_rad: &'f [f64],
-    motor_rad: &'f [f64],
-    motor_ref_rad: &'f [f64],
-    motor_torque_n_m: &'f [f64],
-    /// `+` tensions of every pair, then `-`.
-    tensions_n: &'f [f64],
-    /// `[+, -]` of every span, pair after pair.
-    spans_n: &'f [f64],
-}
-
-impl Layout {
+    /// The state at `v` (one [`Layout::width`] slice of a batch).
     fn frame<'f>(&self, v: &'f [f64]) -> Frame<'f> {
         let (n, np) = (self.joints, self.pairs);
         let (time, v) = v.split_at(1);
@@ -152,6 +137,20 @@ impl Layout {
     }
 }
 
+/// One logged state, read back from a batch (see [`Layout`]).
+struct Frame<'f> {
+    time_s: f64,
+    q_rad: &'f [f64],
+    q_ref_rad: &'f [f64],
+    motor_rad: &'f [f64],
+    motor_ref_rad: &'f [f64],
+    motor_torque_n_m: &'f [f64],
+    /// `+` tensions of every pair, then `-`.
+    tensions_n: &'f [f64],
+    /// `[+, -]` of every span, pair after pair.
+    spans_n: &'f [f64],
+}
+
 impl<'a> ArmLogger<'a> {
     /// Starts the drawing thread, which logs the static scene of `arm` (visuals,
     /// pulleys, motors) and the default blueprint, then every state handed to it.
@@ -162,15 +161,15 @@ impl<'a> ArmLogger<'a> {
             let (tx, rx) = mpsc::channel::<Vec<f64>>();
             let (drawer_sink, drawer_arm, drawer_layout) =
                 (sink.clone(), arm.clone(), layout.clone());
+            let width = layout.width();
             let spawned = std::thread::Builder::new()
                 .name("rerun-arm".into())
                 .spawn(move || {
-                    let mut d = Drawer::new(drawer_sink, drawer_arm);
+                    let mut d = Drawer::new(drawer_sink, drawer_arm, drawer_layout);
                     d.log_static();
-                    let width = drawer_layout.width();
                     for batch in rx {
                         for v in batch.chunks_exact(width) {
-                            d.draw(&drawer_layout.frame(v));
+                            d.draw(v);
                         }
                         if d.cols.frames() >= SEND_FRAMES {
                             d.cols.flush(&d.sink);
@@ -260,6 +259,7 @@ impl Drop for ArmLogger<'_> {
 struct Drawer {
     sink: Sink,
     arm: DrivenArm,
+    layout: Layout,
     dynamics: FastDynamics,
     kin: Kin,
     cols: Columns,
@@ -285,7 +285,7 @@ struct Drawer {
 
 impl Drawer {
     /// Prepares the channels of `arm`.
-    fn new(sink: Sink, arm: DrivenArm) -> Self {
+    fn new(sink: Sink, arm: DrivenArm, layout: Layout) -> Self {
         let dynamics = FastDynamics::new(&arm.spec);
         let kin = dynamics.make_kin();
         let mut cols = Columns::on_duration(SIM_TIME);
@@ -346,6 +346,7 @@ impl Drawer {
         Self {
             sink,
             arm,
+            layout,
             dynamics,
             kin,
             kin_ref,
@@ -516,8 +517,9 @@ impl Drawer {
         rec.report("static scene", s.flush_async());
     }
 
-    /// Adds one logged state to the columns.
-    fn draw(&mut self, st: &Frame) {
+    /// Adds one logged state (a [`Layout::width`] slice of a batch) to the columns.
+    fn draw(&mut self, v: &[f64]) {
+        let st = self.layout.frame(v);
         self.cols.frame_at_s(st.time_s);
         self.dynamics.kinematics(st.q_rad, &mut self.kin);
         for (i, id) in self.links.iter().enumerate() {
@@ -536,7 +538,7 @@ impl Drawer {
             let full = 2.0 * self.arm.pairs[p].spec.preload_n;
             // Spans motor side first; a pair without relay friction has one tension
             // along its whole rope.
-            let count = self.arm.pairs[p].relays.as_ref().map_or(1, |c| c.spans());
+            let count = self.layout.spans[p];
             let (spans, rest) = spans_n.split_at(2 * count);
             spans_n = rest;
             for (side, sign) in [1.0, -1.0].into_iter().enumerate() {
@@ -570,7 +572,8 @@ impl Drawer {
             .push_group(self.tensions, st.tensions_n.iter().copied());
         if self.q_ref_rad != st.q_ref_rad {
             self.dynamics.kinematics(st.q_ref_rad, &mut self.kin_ref);
-            self.q_ref_rad = st.q_ref_rad.to_vec();
+            self.q_ref_rad.clear();
+            self.q_ref_rad.extend_from_slice(st.q_ref_rad);
         }
         let tip = self.tip_m(&self.kin);
         let err = (tip - self.tip_m(&self.kin_ref)).norm();
@@ -695,7 +698,7 @@ mod tests {
     fn the_tip_from_the_logger_kinematics_is_the_arm_tip() {
         let arm = longreach_arm::anchor_chain(6, longreach_rope::LawKind::Elastic, 1e-3).unwrap();
         let rec = Recorder::off();
-        let mut logger = Drawer::new(rec.sink().clone(), arm.clone());
+        let mut logger = Drawer::new(rec.sink().clone(), arm.clone(), Layout::new(&arm));
         for k in 0..5 {
             let q: Vec<f64> = (0..arm.spec.ndofs())
                 .map(|j| 0.3 * ((k * 7 + j * 3) as f64).sin())
