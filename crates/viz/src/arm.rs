@@ -279,6 +279,10 @@ struct Drawer {
     rope_pulleys: Vec<Vec<(Option<usize>, f64)>>,
     /// Scratch: rope points of one side.
     points_m: Vec<[f64; 3]>,
+    /// Scratch: the points of this frame's strips, strip after strip, and where each
+    /// strip ends in them with its colour.
+    strip_points_m: Vec<[f64; 3]>,
+    strip_ends: Vec<(usize, [u8; 4])>,
     /// Drawing scale, m ([`draw_scale_m`]).
     scale_m: f64,
 }
@@ -362,6 +366,8 @@ impl Drawer {
             motor_points_m,
             rope_pulleys,
             points_m: Vec::new(),
+            strip_points_m: Vec::new(),
+            strip_ends: Vec::new(),
             scale_m,
         }
     }
@@ -532,7 +538,10 @@ impl Drawer {
         // Strips of this frame: consecutive spans of the same colour are one strip (an
         // ideal pair is one strip per rope side; relay friction splits it where the
         // span tensions differ).
-        let mut strips: Vec<(Vec<[f64; 3]>, [u8; 4])> = Vec::new();
+        // The strips go into two buffers kept from frame to frame: their points, and
+        // where each strip ends with its colour.
+        self.strip_points_m.clear();
+        self.strip_ends.clear();
         let mut spans_n = st.spans_n;
         for p in 0..self.arm.pairs.len() {
             let full = 2.0 * self.arm.pairs[p].spec.preload_n;
@@ -543,20 +552,30 @@ impl Drawer {
             spans_n = rest;
             for (side, sign) in [1.0, -1.0].into_iter().enumerate() {
                 self.rope_points(p, sign);
-                let mut current: Option<(Vec<[f64; 3]>, [u8; 4])> = None;
+                let mut current: Option<[u8; 4]> = None;
                 for (i, w) in self.points_m.windows(2).enumerate() {
                     let color = tension_color(spans[2 * i.min(count - 1) + side], full);
-                    match &mut current {
-                        Some((points, c)) if *c == color => points.push(w[1]),
-                        _ => {
-                            strips.extend(current.take());
-                            current = Some((vec![w[0], w[1]], color));
+                    if current != Some(color) {
+                        if let Some(c) = current {
+                            self.strip_ends.push((self.strip_points_m.len(), c));
                         }
+                        self.strip_points_m.push(w[0]);
+                        current = Some(color);
                     }
+                    self.strip_points_m.push(w[1]);
                 }
-                strips.extend(current);
+                if let Some(c) = current {
+                    self.strip_ends.push((self.strip_points_m.len(), c));
+                }
             }
         }
+        let points = &self.strip_points_m;
+        let mut start = 0;
+        let strips = self.strip_ends.iter().map(|&(end, color)| {
+            let strip = points[start..end].iter().copied();
+            start = end;
+            (strip, color)
+        });
         self.cols.push_strips(self.ropes, strips);
         self.cols.push_group(
             self.joint_angles,

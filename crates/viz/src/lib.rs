@@ -22,6 +22,7 @@ mod error;
 pub mod ident;
 mod recorder;
 pub mod rig;
+mod rrd_file;
 
 pub use columns::{Columns, RateGate, SeriesId, StripsId, TransformId};
 pub use error::VizError;

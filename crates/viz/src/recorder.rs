@@ -8,6 +8,7 @@ use std::time::Duration;
 
 use rerun::{RecordingStream, RecordingStreamBuilder};
 
+use crate::rrd_file::RrdFile;
 use crate::VizError;
 
 /// Version of the Rerun SDK compiled in; a viewer must have the same version.
@@ -144,14 +145,18 @@ impl Recorder {
         }
         let builder = RecordingStreamBuilder::new("longreach").recording_name(name);
         let mut file = None;
+        let warned = Arc::new(AtomicBool::new(false));
         let rec = match target {
             Target::Save(path) => {
                 let final_path = path.clone().unwrap_or_else(|| default_file.to_path_buf());
                 let tmp = temp_beside(&final_path);
-                let rec = builder.save(&tmp).map_err(|e| VizError::File {
+                let bad_file = |reason: String| VizError::File {
                     path: final_path.clone(),
-                    reason: e.to_string(),
-                })?;
+                    reason,
+                };
+                let sink = RrdFile::create(&tmp, Arc::clone(&warned)).map_err(bad_file)?;
+                let rec = builder.buffered().map_err(|e| bad_file(e.to_string()))?;
+                rec.set_sink(Box::new(sink));
                 file = Some((tmp, final_path));
                 rec
             }
@@ -180,7 +185,7 @@ impl Recorder {
         Ok(Self {
             sink: Sink {
                 stream: rec,
-                warned: Arc::new(AtomicBool::new(false)),
+                warned,
             },
             target: target.clone(),
             file,
