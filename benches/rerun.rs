@@ -1,13 +1,22 @@
-//! Cost of `--rerun`: the same arm run (the scenario's 10 s, and 2 s) with and without
-//! logging to an `.rrd` file at the default 60 frames per simulated second, whole
-//! recording from start to closed file (target: < 20% slower); the fixed part of a
-//! recording (open + close, static scene + blueprint); and the rig's stepped sine
-//! with and without recording.
+//! Cost of `--rerun` (target: a run < 20% slower with an `.rrd` at the default 60
+//! frames per simulated second):
 //!
-//! Run: `cargo bench --bench rerun`.
+//! - `rerun_cli_*`: the whole command as a user runs it, `longreach run SCENARIO --out
+//!   DIR` with and without `--rerun save:FILE` (process start, scenario, run, tables,
+//!   CSV and JSON; the recording closes while the outputs are written), for the fast
+//!   arm and the realistic arm with relay friction;
+//! - `rerun_arm_*`: the same arm run in process (the scenario's 10 s, and 2 s), whole
+//!   recording from start to closed file;
+//! - `rerun_arm_parts`: the fixed part of a recording (open + close, static scene +
+//!   blueprint);
+//! - `rerun_bode_147n`: the rig's stepped sine with and without recording.
+//!
+//! Run: `cargo bench --bench rerun` (`-- rerun_cli` for the whole command only).
 
 use std::hint::black_box;
 use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use longreach_arm::scenario::ArmScenario;
@@ -117,5 +126,43 @@ fn bench_bode(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench_arm, bench_bode);
+/// `longreach run SCENARIO --out DIR [--rerun save:FILE]`, the binary built with this
+/// bench; panics when the command fails.
+fn cli_run(name: &str, dir: &Path, rerun: bool) {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_longreach"));
+    cmd.arg("run")
+        .arg(scenario(name))
+        .arg("--out")
+        .arg(dir.join("out"));
+    if rerun {
+        cmd.arg("--rerun")
+            .arg(format!("save:{}", dir.join("run.rrd").display()));
+    }
+    let out = cmd
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .output()
+        .expect("longreach");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn bench_cli(c: &mut Criterion) {
+    for name in [
+        "arm_dyneema2_distal_step.toml",
+        "arm_dyneema2_base_step_relay_friction.toml",
+    ] {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let mut g = c.benchmark_group(format!("rerun_cli_{}", name.trim_end_matches(".toml")));
+        g.sample_size(20).measurement_time(Duration::from_secs(10));
+        g.bench_function("off", |b| b.iter(|| cli_run(name, dir.path(), false)));
+        g.bench_function("save_60hz", |b| b.iter(|| cli_run(name, dir.path(), true)));
+        g.finish();
+    }
+}
+
+criterion_group!(benches, bench_cli, bench_arm, bench_bode);
 criterion_main!(benches);

@@ -258,25 +258,24 @@ pub fn simulate(
     scenario: &BodeScenario,
     rec: &longreach_viz::Recorder,
 ) -> Result<Vec<BodeRun>, longreach_drive::DriveError> {
-    let hz = rec.is_enabled().then(|| rec.hz());
-    let traced: Vec<(BodeRun, Option<longreach_drive::RigTrace>)> = (0..scenario.rigs.len())
-        .into_par_iter()
-        .map(|i| match hz {
-            Some(hz) => scenario
-                .run_one_traced(i)
-                .map(|(r, t)| (r, Some(longreach_viz::rig::decimate(&t, hz)))),
-            None => scenario.run_one(i).map(|r| (r, None)),
-        })
-        .collect::<Result<_, _>>()?;
-    if rec.is_enabled() {
-        let logged: Vec<_> = traced
-            .iter()
-            .filter_map(|(r, t)| {
-                t.as_ref()
-                    .map(|t| (r.mean_tension_n, t, r.points.as_slice()))
-            })
+    if !rec.is_enabled() {
+        return (0..scenario.rigs.len())
+            .into_par_iter()
+            .map(|i| scenario.run_one(i))
             .collect();
-        longreach_viz::rig::log_bode(rec, &scenario.rigs[0], &logged);
     }
-    Ok(traced.into_iter().map(|(r, _)| r).collect())
+    // Each run is logged (on the logger's thread) as soon as it is done, while the
+    // others are still running.
+    let tensions_n: Vec<f64> = scenario.rigs.iter().map(|r| r.mean_tension_n).collect();
+    let logger = longreach_viz::rig::BodeLogger::new(rec, &scenario.rigs[0], &tensions_n);
+    let runs = (0..scenario.rigs.len())
+        .into_par_iter()
+        .map(|i| {
+            let (run, trace) = scenario.run_one_traced(i)?;
+            logger.log_run(i, &trace, &run.points);
+            Ok(run)
+        })
+        .collect();
+    logger.finish();
+    runs
 }

@@ -12,11 +12,17 @@ import json
 import sys
 
 import rerun as rr
+import pyarrow as pa
 import rerun.experimental as rrx
 
 
-def seconds(t):
-    return t.total_seconds() if hasattr(t, "total_seconds") else t
+def index_values(column):
+    """Seconds of a duration timeline (nanoseconds in the file: read as integers, since
+    a time that is not a whole microsecond does not fit a Python timedelta), or the
+    integers of a sequence timeline."""
+    if pa.types.is_duration(column.type):
+        return [None if v is None else v * 1e-9 for v in column.cast(pa.int64()).to_pylist()]
+    return column.to_pylist()
 
 
 def main(path):
@@ -44,10 +50,10 @@ def main(path):
                 ent["components"].append(n)
         index = "sim_time" if "sim_time" in names else ("frequency_mhz" if "frequency_mhz" in names else None)
         if "Scalars:scalars" in names and index:
-            times = rb.column(index).to_pylist()
+            times = index_values(rb.column(index))
             values = rb.column("Scalars:scalars").to_pylist()
             for t, v in zip(times, values):
-                ent["scalars"].append([seconds(t), v if v else []])
+                ent["scalars"].append([t, v if v else []])
         if "SeriesLines:names" in names:
             for v in rb.column("SeriesLines:names").to_pylist():
                 ent["names"] = v or []

@@ -228,8 +228,19 @@ fn a_bode_run_records_gain_and_phase_per_frequency() {
         json.to_str().unwrap(),
         &format!("--rerun=save:{}", rrd.display()),
     ]));
+    // Logging (the runs handed to the logging thread as they finish) changes nothing.
+    let plain = dir.path().join("plain.json");
+    ok(&longreach(&[
+        "bode",
+        scenario.to_str().unwrap(),
+        "--quiet",
+        "--json",
+        plain.to_str().unwrap(),
+    ]));
+    let j_text = std::fs::read_to_string(&json).unwrap();
+    assert_eq!(j_text, std::fs::read_to_string(&plain).unwrap());
     let Some(s) = read_back(&rrd) else { return };
-    let j: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let j: Value = serde_json::from_str(&j_text).unwrap();
     let points = j["runs"][0]["points"].as_array().unwrap();
     let gain = scalars(entity(&s, "/bode/T147N/gain_db/simulated"));
     assert_eq!(gain.len(), 3);
@@ -242,9 +253,31 @@ fn a_bode_run_records_gain_and_phase_per_frequency() {
         3,
         "one row per test frequency"
     );
-    let out = entity(&s, "/rig/T147N/series/output_rad");
-    assert!(out["rows"].as_u64().unwrap() > 100);
-    assert!(entity(&s, "/rig/T147N/ropes")["rows"] == out["rows"]);
+    // The rig's series: two groups with named instances, a row per logged frame; the
+    // ropes' colours and the spokes' rotations on every frame (their geometry static).
+    let angles = entity(&s, "/rig/T147N/series/angles_rad");
+    assert!(angles["rows"].as_u64().unwrap() > 100);
+    assert_eq!(angles["names"], serde_json::json!(["input", "output"]));
+    let tensions = entity(&s, "/rig/T147N/series/tensions_n");
+    assert_eq!(tensions["names"], serde_json::json!(["rope 1", "rope 2"]));
+    for e in [
+        "/rig/T147N/series/tensions_n",
+        "/rig/T147N/ropes",
+        "/rig/T147N/spokes/input",
+        "/rig/T147N/spokes/output",
+    ] {
+        assert_eq!(entity(&s, e)["rows"], angles["rows"], "{e}");
+    }
+    // Both ropes start at the mean tension, and both pulleys at rest.
+    for i in 0..2 {
+        let (t, f) = instance(tensions, i)[0];
+        assert!(
+            t == 0.0 && (f - 147.0).abs() < 1e-9,
+            "rope {}: {f} N at {t} s",
+            i + 1
+        );
+        assert_eq!(instance(angles, i)[0], (0.0, 0.0));
+    }
 }
 
 #[test]

@@ -95,4 +95,15 @@ fn main() {
             .collect();
         println!("{stat:6} ms: {}", line.join(" | "));
     }
+    // Each repetition runs without and with the recording back to back, so their
+    // ratio cancels the machine's slow drifts (other jobs on a shared host).
+    let mut ratios: Vec<f64> = rows.iter().map(|r| r[6] / r[0]).collect();
+    ratios.sort_by(f64::total_cmp);
+    let pct = |i: usize| 100.0 * (ratios[i] - 1.0);
+    println!(
+        "recorded run vs off, paired per repetition: median {:+.1}% (quartiles {:+.1}% .. {:+.1}%)",
+        pct(reps / 2),
+        pct(reps / 4),
+        pct(3 * reps / 4)
+    );
 }

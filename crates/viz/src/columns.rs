@@ -48,6 +48,9 @@ pub struct TransformId(usize);
 /// Handle of a line-strip channel in [`Columns`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct StripsId(usize);
+/// Handle of a channel of strip colours (strips logged once, static) in [`Columns`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ColorsId(usize);
 
 #[derive(Debug, Clone)]
 enum Index {
@@ -94,6 +97,8 @@ pub struct Columns {
     series: Vec<Series>,
     poses: Vec<(String, Vec<[f32; 3]>, Vec<[f32; 4]>)>,
     strips: Vec<Strips>,
+    /// `(entity, colours per frame, colours)` of strips whose geometry is static.
+    colors: Vec<(String, Vec<usize>, Vec<[u8; 4]>)>,
     last_send: Instant,
     names_sent: bool,
 }
@@ -116,6 +121,7 @@ impl Columns {
             series: Vec::new(),
             poses: Vec::new(),
             strips: Vec::new(),
+            colors: Vec::new(),
             last_send: Instant::now(),
             names_sent: false,
         }
@@ -151,6 +157,12 @@ impl Columns {
         TransformId(self.poses.len() - 1)
     }
 
+    /// Adds a rotation channel at `entity` ([`Columns::push_rotation`]; its translation,
+    /// if any, is logged once, static).
+    pub fn rotation(&mut self, entity: impl Into<String>) -> TransformId {
+        self.pose(entity)
+    }
+
     /// Adds a channel of coloured line strips of `radius_m` at `entity`.
     pub fn strips(&mut self, entity: impl Into<String>, radius_m: f64) -> StripsId {
         self.strips.push(Strips {
@@ -162,6 +174,13 @@ impl Columns {
             colors: Vec::new(),
         });
         StripsId(self.strips.len() - 1)
+    }
+
+    /// Adds a channel of the colours of the line strips at `entity`, whose geometry is
+    /// logged once (static): a frame costs a colour per strip instead of its points.
+    pub fn strip_colors(&mut self, entity: impl Into<String>) -> ColorsId {
+        self.colors.push((entity.into(), Vec::new(), Vec::new()));
+        ColorsId(self.colors.len() - 1)
     }
 
     /// Starts a frame at `time_s` (duration timelines).
@@ -206,6 +225,12 @@ impl Columns {
         p.2.push(quat_xyzw.map(|v| v as f32));
     }
 
+    /// The rotation quaternion `[x, y, z, w]` of channel `id` in the current frame (a
+    /// channel of [`Columns::rotation`]).
+    pub fn push_rotation(&mut self, id: TransformId, quat_xyzw: [f64; 4]) {
+        self.poses[id.0].2.push(quat_xyzw.map(|v| v as f32));
+    }
+
     /// The strips of channel `id` in the current frame, each with its colour.
     pub fn push_strips<I, P>(&mut self, id: StripsId, strips: I)
     where
@@ -223,6 +248,14 @@ impl Columns {
             n += 1;
         }
         s.counts.push(n);
+    }
+
+    /// The colours of the strips of channel `id` in the current frame, in their order.
+    pub fn push_colors(&mut self, id: ColorsId, colors: impl IntoIterator<Item = [u8; 4]>) {
+        let (_, counts, all) = &mut self.colors[id.0];
+        let before = all.len();
+        all.extend(colors);
+        counts.push(all.len() - before);
     }
 
     fn time_column(&self) -> TimeColumn {
@@ -267,6 +300,10 @@ impl Columns {
             s.lengths.clear();
             s.points.clear();
             s.colors.clear();
+        }
+        for (_, counts, colors) in &mut self.colors {
+            counts.clear();
+            colors.clear();
         }
     }
 
@@ -322,14 +359,21 @@ impl Columns {
             );
         }
         for (entity, tr, q) in &self.poses {
-            let cols = Transform3D::update_fields()
-                .with_many_translation(tr.iter().map(|t| Translation3D::from(*t)))
-                .with_many_quaternion(
-                    q.iter()
-                        .map(|q| RotationQuat::from(Quaternion::from_xyzw(*q))),
-                )
-                .columns_of_unit_batches();
-            send(entity, tr.len(), cols.map(Iterator::collect).map_err(err));
+            let rotations = Transform3D::update_fields().with_many_quaternion(
+                q.iter()
+                    .map(|q| RotationQuat::from(Quaternion::from_xyzw(*q))),
+            );
+            // A rotation channel has no translations; a pose channel one per frame.
+            let (cols, frames) = if tr.is_empty() {
+                (rotations.columns_of_unit_batches(), q.len())
+            } else if tr.len() == q.len() {
+                let poses =
+                    rotations.with_many_translation(tr.iter().map(|t| Translation3D::from(*t)));
+                (poses.columns_of_unit_batches(), q.len())
+            } else {
+                (rotations.columns_of_unit_batches(), tr.len())
+            };
+            send(entity, frames, cols.map(Iterator::collect).map_err(err));
         }
         for s in &self.strips {
             let mut at = 0;
@@ -349,6 +393,20 @@ impl Columns {
             send(
                 &s.entity,
                 s.counts.len(),
+                cols.map(Iterator::collect).map_err(err),
+            );
+        }
+        for (entity, counts, colors) in &self.colors {
+            let cols = LineStrips3D::update_fields()
+                .with_colors(
+                    colors
+                        .iter()
+                        .map(|c| Color::from_unmultiplied_rgba(c[0], c[1], c[2], c[3])),
+                )
+                .columns(counts.iter().copied());
+            send(
+                entity,
+                counts.len(),
                 cols.map(Iterator::collect).map_err(err),
             );
         }

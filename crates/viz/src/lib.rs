@@ -24,7 +24,7 @@ mod recorder;
 pub mod rig;
 mod rrd_file;
 
-pub use columns::{Columns, RateGate, SeriesId, StripsId, TransformId};
+pub use columns::{ColorsId, Columns, RateGate, SeriesId, StripsId, TransformId};
 pub use error::VizError;
 pub use recorder::{Closing, Recorder, Sink, Target, DEFAULT_HZ, SDK_VERSION};
 
