@@ -1,14 +1,16 @@
 #!/usr/bin/env python3
-"""What `--rerun` costs a whole `longreach run`, measured in pairs.
+"""What `--rerun` costs a whole `longreach run` (or `bode`), measured in pairs.
 
-Runs `longreach run SCENARIO --out DIR` without and with `--rerun save:FILE`, back to
-back, PAIRS times (the order alternates), and prints the median and quartiles of the
+Runs `longreach run SCENARIO --out DIR` (with `--command bode`: `longreach bode
+SCENARIO --quiet`) without and with `--rerun save:FILE`, back to back, PAIRS times
+(the order alternates), and prints the median and quartiles of the
 per-pair ratio with/without: on a shared machine whose speed drifts by a factor of
 two from one second to the next, a ratio of two neighbouring runs is steadier than
 the ratio of two separately measured averages (what `cargo bench --bench rerun --
 rerun_cli` gives).
 
-Usage: tools/rerun_overhead.py [--bin target/release/longreach] [--pairs 40] SCENARIO...
+Usage: tools/rerun_overhead.py [--bin target/release/longreach] [--pairs 40]
+       [--command run|bode] SCENARIO...
 """
 
 import argparse
@@ -31,6 +33,7 @@ def main():
     ap.add_argument("scenarios", nargs="+", metavar="SCENARIO")
     ap.add_argument("--bin", default="target/release/longreach")
     ap.add_argument("--pairs", type=int, default=40)
+    ap.add_argument("--command", choices=["run", "bode"], default="run")
     a = ap.parse_args()
     if not os.access(a.bin, os.X_OK):
         sys.exit(f"{a.bin}: not an executable; build it with `cargo build --release`")
@@ -38,9 +41,11 @@ def main():
         sys.exit("--pairs: at least 4")
     with tempfile.TemporaryDirectory() as d:
         for scenario in a.scenarios:
-            off_cmd = [a.bin, "run", scenario, "--out", os.path.join(d, "off")]
-            rec_cmd = [a.bin, "run", scenario, "--out", os.path.join(d, "rec"),
-                       "--rerun", "save:" + os.path.join(d, "run.rrd")]
+            if a.command == "run":
+                off_cmd = [a.bin, "run", scenario, "--out", os.path.join(d, "off")]
+            else:
+                off_cmd = [a.bin, "bode", scenario, "--quiet"]
+            rec_cmd = off_cmd + ["--rerun", "save:" + os.path.join(d, "run.rrd")]
             timed(off_cmd)  # warm the page cache
             off, rec, ratio = [], [], []
             for i in range(a.pairs):
