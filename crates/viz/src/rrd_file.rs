@@ -95,3 +95,33 @@ impl Drop for RrdFile {
         });
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    #[cfg(target_os = "linux")]
+    fn a_write_that_fails_is_an_error_reported_once() {
+        // /dev/full accepts the open and fails every write (ENOSPC); the header sits in
+        // the buffer until the first flush.
+        let warned = Arc::new(AtomicBool::new(false));
+        let sink = RrdFile::create(Path::new("/dev/full"), Arc::clone(&warned)).unwrap();
+        let first = sink.flush_blocking(Duration::from_secs(1)).unwrap_err();
+        assert!(first.to_string().contains("/dev/full"), "{first}");
+        assert!(warned.load(Ordering::Relaxed));
+        // Later failures are errors too, and the flag stays set (said once).
+        assert!(sink.flush_blocking(Duration::from_secs(1)).is_err());
+        assert!(warned.load(Ordering::Relaxed));
+    }
+
+    #[test]
+    fn a_file_that_cannot_be_created_is_an_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("missing").join("a.rrd");
+        let e = RrdFile::create(&path, Arc::new(AtomicBool::new(false)))
+            .err()
+            .unwrap();
+        assert!(!e.is_empty());
+    }
+}
