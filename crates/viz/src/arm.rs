@@ -30,8 +30,7 @@ use rerun::blueprint::{
 use rerun::components::RotationQuat;
 use rerun::{Boxes3D, Capsules3D, Color, Cylinders3D, Ellipsoids3D, Quaternion, ViewCoordinates};
 
-use std::sync::mpsc;
-use std::thread::JoinHandle;
+use crate::worker::Worker;
 
 use crate::{
     tension_color, Columns, RateGate, Recorder, SeriesId, Sink, StripsId, TransformId, SIM_TIME,
@@ -62,9 +61,8 @@ pub struct ArmLogger<'a> {
     batch: Vec<f64>,
     layout: Layout,
     frames: usize,
-    /// The channel to the drawing thread and its handle (`None` when not recording).
-    worker: Option<(mpsc::Sender<Vec<f64>>, JoinHandle<()>)>,
-    sink: Sink,
+    /// The drawing thread (`None` when not recording).
+    worker: Option<Worker<Vec<f64>>>,
 }
 
 /// Where the values of one logged state sit in a batch: time, joint angles, joint
@@ -156,36 +154,26 @@ impl<'a> ArmLogger<'a> {
     /// pulleys, motors) and the default blueprint, then every state handed to it.
     pub fn new(rec: &'a Recorder, arm: &'a DrivenArm) -> Self {
         let layout = Layout::new(arm);
-        let sink = rec.sink().clone();
         let worker = if rec.is_enabled() {
-            let (tx, rx) = mpsc::channel::<Vec<f64>>();
             let (drawer_sink, drawer_arm, drawer_layout) =
-                (sink.clone(), arm.clone(), layout.clone());
+                (rec.sink().clone(), arm.clone(), layout.clone());
             let width = layout.width();
-            let spawned = std::thread::Builder::new()
-                .name("rerun-arm".into())
-                .spawn(move || {
-                    let mut d = Drawer::new(drawer_sink, drawer_arm, drawer_layout);
-                    d.log_static();
-                    for batch in rx {
-                        for v in batch.chunks_exact(width) {
-                            d.draw(v);
-                        }
-                        if d.cols.frames() >= SEND_FRAMES {
-                            d.cols.flush(&d.sink);
-                        } else {
-                            d.cols.flush_when_due(&d.sink);
-                        }
+            Worker::spawn(rec.sink(), "rerun-arm", "drawing the arm", move |rx| {
+                let mut d = Drawer::new(drawer_sink, drawer_arm, drawer_layout);
+                d.log_static();
+                for batch in rx {
+                    let batch: Vec<f64> = batch;
+                    for v in batch.chunks_exact(width) {
+                        d.draw(v);
                     }
-                    d.cols.flush(&d.sink);
-                });
-            match spawned {
-                Ok(handle) => Some((tx, handle)),
-                Err(e) => {
-                    sink.report("starting the drawing thread", Err(e));
-                    None
+                    if d.cols.frames() >= SEND_FRAMES {
+                        d.cols.flush(&d.sink);
+                    } else {
+                        d.cols.flush_when_due(&d.sink);
+                    }
                 }
-            }
+                d.cols.flush(&d.sink);
+            })
         } else {
             None
         };
@@ -196,13 +184,12 @@ impl<'a> ArmLogger<'a> {
             layout,
             frames: 0,
             worker,
-            sink,
         }
     }
 
     /// Logs `st` when it is due at the logging rate (reads it only).
     pub fn observe(&mut self, st: &DrivenState) {
-        let Some((tx, _)) = &self.worker else {
+        let Some(worker) = &self.worker else {
             return;
         };
         if !self.gate.due(st.time_s) {
@@ -212,7 +199,7 @@ impl<'a> ArmLogger<'a> {
         self.frames += 1;
         if self.batch.len() >= BATCH_FRAMES * self.layout.width() {
             let batch = std::mem::take(&mut self.batch);
-            if tx.send(batch).is_err() {
+            if !worker.send(batch) {
                 // The drawing thread ended early (it panicked): say so when joining.
                 self.close();
             }
@@ -231,19 +218,15 @@ impl<'a> ArmLogger<'a> {
     }
 
     fn close(&mut self) {
-        let Some((tx, handle)) = self.worker.take() else {
+        let Some(mut worker) = self.worker.take() else {
             return;
         };
         let batch = std::mem::take(&mut self.batch);
         if !batch.is_empty() {
             // A failed send means the thread is gone: the join below reports it.
-            let _ = tx.send(batch);
+            worker.send(batch);
         }
-        drop(tx);
-        if handle.join().is_err() {
-            self.sink
-                .report("drawing the arm", Err("the drawing thread panicked"));
-        }
+        worker.join();
     }
 }
 

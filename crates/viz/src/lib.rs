@@ -23,6 +23,7 @@ pub mod ident;
 mod recorder;
 pub mod rig;
 mod rrd_file;
+mod worker;
 
 pub use columns::{ColorsId, Columns, RateGate, SeriesId, StripsId, TransformId};
 pub use error::VizError;

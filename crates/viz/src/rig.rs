@@ -22,9 +22,7 @@ use rerun::components::RotationQuat;
 use rerun::{Color, Cylinders3D, LineStrips3D, Quaternion, Transform3D, ViewCoordinates};
 
 use crate::ident::FREQUENCY_TIMELINE;
-use std::sync::mpsc;
-use std::thread::JoinHandle;
-
+use crate::worker::Worker;
 use crate::{tension_color, Columns, RateGate, Recorder, Sink, SIM_TIME};
 
 /// Logs the runs of one Bode scenario: `(mean tension, trace, points)` per run (the
@@ -48,70 +46,49 @@ type BodeRun = (usize, RigTrace, Vec<FrequencyPoint>);
 #[derive(Debug)]
 pub struct BodeLogger {
     hz: f64,
-    worker: Option<(mpsc::Sender<BodeRun>, JoinHandle<()>)>,
-    sink: Sink,
+    worker: Option<Worker<BodeRun>>,
 }
 
 impl BodeLogger {
     /// Starts the logging thread for runs at the mean tensions `tensions_n` (run `k`
     /// at `tensions_n[k]`) of the rig `spec`.
     pub fn new(rec: &Recorder, spec: &RigSpec, tensions_n: &[f64]) -> Self {
-        let sink = rec.sink().clone();
         let worker = if rec.is_enabled() {
-            let (tx, rx) = mpsc::channel::<BodeRun>();
-            let (s, spec, tensions) = (sink.clone(), spec.clone(), tensions_n.to_vec());
-            let spawned = std::thread::Builder::new()
-                .name("rerun-bode".into())
-                .spawn(move || {
+            let (s, spec, tensions) = (rec.sink().clone(), spec.clone(), tensions_n.to_vec());
+            Worker::spawn(
+                rec.sink(),
+                "rerun-bode",
+                "logging the Bode runs",
+                move |rx| {
                     log_layout(&s, &spec, &tensions);
                     for (k, trace, points) in rx {
+                        let (k, trace, points): BodeRun = (k, trace, points);
                         log_run(&s, tensions[k], &trace, &points);
                     }
-                });
-            match spawned {
-                Ok(handle) => Some((tx, handle)),
-                Err(e) => {
-                    sink.report("starting the logging thread", Err(e));
-                    None
-                }
-            }
+                },
+            )
         } else {
             None
         };
         Self {
             hz: rec.hz(),
             worker,
-            sink,
         }
     }
 
     /// Logs run `k` (its full trace is decimated here, on the caller's thread).
     pub fn log_run(&self, k: usize, trace: &RigTrace, points: &[FrequencyPoint]) {
-        if let Some((tx, _)) = &self.worker {
+        if let Some(worker) = &self.worker {
             // A failed send means the thread is gone: `finish` reports it.
-            let _ = tx.send((k, decimate(trace, self.hz), points.to_vec()));
+            worker.send((k, decimate(trace, self.hz), points.to_vec()));
         }
     }
 
-    /// Waits for every run handed over to be logged.
+    /// Waits for every run handed over to be logged (dropping the logger waits too).
     pub fn finish(mut self) {
-        self.close();
-    }
-
-    fn close(&mut self) {
-        if let Some((tx, handle)) = self.worker.take() {
-            drop(tx);
-            if handle.join().is_err() {
-                self.sink
-                    .report("logging the Bode runs", Err("the logging thread panicked"));
-            }
+        if let Some(mut worker) = self.worker.take() {
+            worker.join();
         }
-    }
-}
-
-impl Drop for BodeLogger {
-    fn drop(&mut self) {
-        self.close();
     }
 }
 
