@@ -158,11 +158,10 @@ impl<'a> ArmLogger<'a> {
             let (drawer_sink, drawer_arm, drawer_layout) =
                 (rec.sink().clone(), arm.clone(), layout.clone());
             let width = layout.width();
-            Worker::spawn(rec.sink(), "rerun-arm", "drawing the arm", move |rx| {
+            Worker::<Vec<f64>>::spawn(rec.sink(), "rerun-arm", "drawing the arm", move |rx| {
                 let mut d = Drawer::new(drawer_sink, drawer_arm, drawer_layout);
                 d.log_static();
                 for batch in rx {
-                    let batch: Vec<f64> = batch;
                     for v in batch.chunks_exact(width) {
                         d.draw(v);
                     }

@@ -55,14 +55,13 @@ impl BodeLogger {
     pub fn new(rec: &Recorder, spec: &RigSpec, tensions_n: &[f64]) -> Self {
         let worker = if rec.is_enabled() {
             let (s, spec, tensions) = (rec.sink().clone(), spec.clone(), tensions_n.to_vec());
-            Worker::spawn(
+            Worker::<BodeRun>::spawn(
                 rec.sink(),
                 "rerun-bode",
                 "logging the Bode runs",
                 move |rx| {
                     log_layout(&s, &spec, &tensions);
                     for (k, trace, points) in rx {
-                        let (k, trace, points): BodeRun = (k, trace, points);
                         log_run(&s, tensions[k], &trace, &points);
                     }
                 },
