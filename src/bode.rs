@@ -74,7 +74,9 @@ pub fn run(args: &BodeArgs) -> Result<ExitCode> {
     )?;
     let runs = simulate(&scenario, &rec)
         .with_context(|| format!("simulating {}", args.scenario.display()));
-    rerun_args::finish(rec);
+    // The recording is closed in the background while the tables and files below are
+    // written (dropping `closing` on an early return waits for it too).
+    let closing = rec.finish_in_background();
     let runs = runs?;
     let rig = &scenario.rigs[0];
     let law = if rig.law.c2_n_s.is_some() {
@@ -249,6 +251,7 @@ pub fn run(args: &BodeArgs) -> Result<ExitCode> {
         })?;
         println!("wrote {}", path.display());
     }
+    rerun_args::finished(closing);
     Ok(ExitCode::SUCCESS)
 }
 

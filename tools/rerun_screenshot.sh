@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# Records a real arm run and screenshots the native Rerun viewer (same version as the
-# SDK, 0.36.3) showing it with its default layout: docs/img/rerun_arm.png.
+# Records a real arm run (or, given a Bode scenario, the rig's runs) and screenshots
+# the native Rerun viewer (same version as the SDK, 0.36.3) showing it with its
+# default layout: docs/img/rerun_arm.png; docs/img/rerun_bode.png came from
+#   tools/rerun_screenshot.sh scenarios/bode_dyneema2.toml docs/img/rerun_bode.png
 #
 # Needs:
 #   pip install rerun-sdk==0.36.3 pillow     # the viewer (+ its Python client) and PIL
@@ -52,7 +54,10 @@ fi
 viewer_bin=$(python3 -c 'import os, rerun_cli; print(os.path.join(os.path.dirname(rerun_cli.__file__), "rerun"))')
 [ -x "$viewer_bin" ] || viewer_bin=$(command -v rerun)
 
-${LONGREACH:-cargo run --release --quiet --} run "$scenario" --rerun "save:$work/arm.rrd" --rerun-hz 60 >/dev/null
+# A Bode scenario (`kind = "bode"`) is recorded by `longreach bode`, any other by `run`.
+command=run
+grep -Eq '^kind *= *"bode"' "$scenario" && command=bode
+${LONGREACH:-cargo run --release --quiet --} "$command" "$scenario" --rerun "save:$work/arm.rrd" --rerun-hz 60 >/dev/null
 
 # Software rendering: Mesa's lavapipe (Vulkan) or llvmpipe (GL) stand in for a GPU.
 export LIBGL_ALWAYS_SOFTWARE=1

@@ -210,13 +210,13 @@ fn a_bode_run_records_gain_and_phase_per_frequency() {
         .unwrap()
         .replace(
             "mean_tensions_n = [49.0, 98.0, 147.0, 196.0, 245.0, 294.0, 343.0, 392.0]",
-            "mean_tensions_n = [147.0]",
+            "mean_tensions_n = [147.0, 294.0]",
         )
         .replace(
             "frequencies_hz = [0.1, 0.2, 0.4, 0.7, 1.0, 1.4, 1.8, 2.1, 2.4, 2.7, 3.0, 3.3, 3.6, 4.0, 4.5, 5.0, 6.0]",
             "frequencies_hz = [1.0, 3.0, 5.0]",
         );
-    assert!(text.contains("[147.0]") && text.contains("[1.0, 3.0, 5.0]"));
+    assert!(text.contains("[147.0, 294.0]") && text.contains("[1.0, 3.0, 5.0]"));
     std::fs::write(&scenario, text).unwrap();
     let json = dir.path().join("b.json");
     let rrd = dir.path().join("b.rrd");
@@ -241,42 +241,64 @@ fn a_bode_run_records_gain_and_phase_per_frequency() {
     assert_eq!(j_text, std::fs::read_to_string(&plain).unwrap());
     let Some(s) = read_back(&rrd) else { return };
     let j: Value = serde_json::from_str(&j_text).unwrap();
-    let points = j["runs"][0]["points"].as_array().unwrap();
-    let gain = scalars(entity(&s, "/bode/T147N/gain_db/simulated"));
-    assert_eq!(gain.len(), 3);
-    for (p, (f_mhz, g)) in points.iter().zip(&gain) {
-        assert!((p["frequency_hz"].as_f64().unwrap() * 1e3 - f_mhz).abs() < 0.5);
-        assert!((p["simulated_gain_db"].as_f64().unwrap() - g).abs() < 1e-12);
+    // Gain and phase: one entity each for every run, a line per run and model, a row
+    // per test frequency.
+    let gain = entity(&s, "/bode/gain_db");
+    let phase = entity(&s, "/bode/phase_deg");
+    let names = serde_json::json!([
+        "T147N simulated",
+        "T147N analytic",
+        "T294N simulated",
+        "T294N analytic"
+    ]);
+    assert_eq!(gain["names"], names);
+    assert_eq!(phase["names"], names);
+    assert_eq!(gain["rows"], 3, "one row per test frequency");
+    for (r, run) in j["runs"].as_array().unwrap().iter().enumerate() {
+        let points = run["points"].as_array().unwrap();
+        assert_eq!(points.len(), 3);
+        for (k, key) in [(0, "simulated"), (1, "analytic")] {
+            let g = instance(gain, 2 * r + k);
+            let ph = instance(phase, 2 * r + k);
+            for (i, p) in points.iter().enumerate() {
+                assert!((p["frequency_hz"].as_f64().unwrap() * 1e3 - g[i].0).abs() < 0.5);
+                let (pg, pp) = (
+                    p[format!("{key}_gain_db")].as_f64().unwrap(),
+                    p[format!("{key}_phase_deg")].as_f64().unwrap(),
+                );
+                assert!((pg - g[i].1).abs() < 1e-12, "run {r} {key} gain");
+                assert!((pp - ph[i].1).abs() < 1e-12, "run {r} {key} phase");
+            }
+        }
     }
-    assert_eq!(
-        entity(&s, "/bode/T147N/phase_deg/analytic")["rows"],
-        3,
-        "one row per test frequency"
-    );
-    // The rig's series: two groups with named instances, a row per logged frame; the
-    // ropes' colours and the spokes' rotations on every frame (their geometry static).
-    let angles = entity(&s, "/rig/T147N/series/angles_rad");
-    assert!(angles["rows"].as_u64().unwrap() > 100);
-    assert_eq!(angles["names"], serde_json::json!(["input", "output"]));
-    let tensions = entity(&s, "/rig/T147N/series/tensions_n");
-    assert_eq!(tensions["names"], serde_json::json!(["rope 1", "rope 2"]));
-    for e in [
-        "/rig/T147N/series/tensions_n",
-        "/rig/T147N/ropes",
-        "/rig/T147N/spokes/input",
-        "/rig/T147N/spokes/output",
-    ] {
-        assert_eq!(entity(&s, e)["rows"], angles["rows"], "{e}");
-    }
-    // Both ropes start at the mean tension, and both pulleys at rest.
-    for i in 0..2 {
-        let (t, f) = instance(tensions, i)[0];
-        assert!(
-            t == 0.0 && (f - 147.0).abs() < 1e-9,
-            "rope {}: {f} N at {t} s",
-            i + 1
+    // The rig's series per run: two groups with named instances, a row per logged
+    // frame; the ropes' colours on every frame (their geometry static).
+    for (run, mean_n) in [("T147N", 147.0), ("T294N", 294.0)] {
+        let angles = entity(&s, &format!("/rig/{run}/series/angles_rad"));
+        assert!(angles["rows"].as_u64().unwrap() > 100);
+        assert_eq!(
+            angles["names"],
+            serde_json::json!([format!("{run} input"), format!("{run} output")])
         );
-        assert_eq!(instance(angles, i)[0], (0.0, 0.0));
+        let tensions = entity(&s, &format!("/rig/{run}/series/tensions_n"));
+        assert_eq!(
+            tensions["names"],
+            serde_json::json!([format!("{run} rope 1"), format!("{run} rope 2")])
+        );
+        for e in ["series/tensions_n", "ropes"] {
+            let e = format!("/rig/{run}/{e}");
+            assert_eq!(entity(&s, &e)["rows"], angles["rows"], "{e}");
+        }
+        // Both ropes start at the mean tension, and both pulleys at rest.
+        for i in 0..2 {
+            let (t, f) = instance(tensions, i)[0];
+            assert!(
+                t == 0.0 && (f - mean_n).abs() < 1e-9,
+                "{run} rope {}: {f} N at {t} s",
+                i + 1
+            );
+            assert_eq!(instance(angles, i)[0], (0.0, 0.0));
+        }
     }
 }
 
@@ -404,11 +426,13 @@ fn a_batch_records_the_selected_scenarios_only() {
     let Some(s) = read_back(&rec.join("4.rrd")) else {
         return;
     };
-    let ents = s["entities"].as_object().unwrap();
+    // Scenario 4 is a Bode run at one mean tension: its gain, simulated and analytic.
+    let gain = entity(&s, "/bode/gain_db");
+    let names = gain["names"].as_array().unwrap();
+    assert_eq!(names.len(), 2, "{names:?}");
     assert!(
-        ents.keys()
-            .any(|k| k.starts_with("/bode/") && k.ends_with("/gain_db/simulated")),
-        "{:?}",
-        ents.keys().collect::<Vec<_>>()
+        names[0].as_str().unwrap().ends_with(" simulated"),
+        "{names:?}"
     );
+    assert!(gain["rows"].as_u64().unwrap() > 0);
 }

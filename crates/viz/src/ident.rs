@@ -8,10 +8,14 @@
 //! /compare/<run>/{measured,model,residual}      compared channel on sim_time (rad or N)
 //! /compare/<run>/with_effect                    model + the winning effect (diagnose)
 //! /frequency/<run>/gain_db/{measured,model}     per test frequency, timeline frequency_mhz
-//! /frequency/<run>/phase_deg/{measured,model}
+//! /frequency/<run>/phase_deg/{measured,model}   (series named "<run> measured", "<run> model")
 //! /diagnose/ranking                             the candidate table (markdown)
 //! /diagnose/nrmse                               NRMSE bar chart: baseline, then candidates best first
 //! ```
+//!
+//! Default layout: a tab per run (measured, model and residual on `sim_time`), a tab
+//! with the gain and phase of every run (on `frequency_mhz`), and for `diagnose` the
+//! ranking beside them.
 
 use longreach_ident::analysis::{Comparison, Diagnosis, Prepared};
 use rerun::blueprint::{
@@ -40,6 +44,7 @@ pub fn log_comparison(
         return;
     }
     let mut run_views = Vec::new();
+    let mut freq_runs = Vec::new();
     for (i, run) in prep.runs.iter().enumerate() {
         let name = sanitize(&run.name);
         let Some(sim) = sims.get(i) else { continue };
@@ -69,10 +74,17 @@ pub fn log_comparison(
         }
         cols.flush(rec.sink());
         let mut freq = Columns::on_sequence(FREQUENCY_TIMELINE);
-        let gm = freq.series(format!("/frequency/{name}/gain_db/measured"));
-        let gs = freq.series(format!("/frequency/{name}/gain_db/model"));
-        let pm = freq.series(format!("/frequency/{name}/phase_deg/measured"));
-        let ps = freq.series(format!("/frequency/{name}/phase_deg/model"));
+        // Named after the run: the frequency tab overlays every run.
+        let mut named = |what: &str, source: &str| {
+            freq.series_group(
+                format!("/frequency/{name}/{what}/{source}"),
+                vec![format!("{} {source}", run.name)],
+            )
+        };
+        let gm = named("gain_db", "measured");
+        let gs = named("gain_db", "model");
+        let pm = named("phase_deg", "measured");
+        let ps = named("phase_deg", "model");
         for f in cmp.frequency.iter().filter(|f| f.run == run.name) {
             freq.frame_at((f.frequency_hz * 1e3).round() as i64);
             freq.push(gm, f.gain_measured_db);
@@ -80,27 +92,40 @@ pub fn log_comparison(
             freq.push(pm, f.phase_measured_deg);
             freq.push(ps, f.phase_model_deg);
         }
-        let has_freq = freq.frames() > 0;
+        if freq.frames() > 0 {
+            freq_runs.push(name.clone());
+        }
         freq.flush(rec.sink());
-        let mut views = vec![
-            TimeSeriesView::new(format!("{} measured vs model", run.name))
+        run_views.push(
+            TimeSeriesView::new(format!("{} measured vs model ({SIM_TIME})", run.name))
                 .with_origin(format!("/compare/{name}"))
                 .into(),
-        ];
-        if has_freq {
-            views.push(
-                Horizontal::new([
-                    TimeSeriesView::new("gain (dB) vs frequency (mHz)")
-                        .with_origin(format!("/frequency/{name}/gain_db"))
-                        .into(),
-                    TimeSeriesView::new("phase (deg) vs frequency (mHz)")
-                        .with_origin(format!("/frequency/{name}/phase_deg"))
-                        .into(),
-                ])
-                .into(),
-            );
-        }
-        run_views.push(Vertical::new(views).with_name(run.name.clone()).into());
+        );
+    }
+    // Rerun plots every series against the time panel's one timeline
+    // (rerun-io/rerun#8050): the per-frequency values of every run get a tab of their
+    // own, named after the timeline it needs.
+    if !freq_runs.is_empty() {
+        let every_run = |what: &str| -> Vec<String> {
+            freq_runs
+                .iter()
+                .map(|name| format!("+ /frequency/{name}/{what}/**"))
+                .collect()
+        };
+        run_views.push(
+            Horizontal::new([
+                TimeSeriesView::new("gain (dB) vs frequency (mHz)")
+                    .with_origin("/frequency")
+                    .with_contents(every_run("gain_db"))
+                    .into(),
+                TimeSeriesView::new("phase (deg) vs frequency (mHz)")
+                    .with_origin("/frequency")
+                    .with_contents(every_run("phase_deg"))
+                    .into(),
+            ])
+            .with_name(format!("frequency response ({FREQUENCY_TIMELINE})"))
+            .into(),
+        );
     }
     let stream = rec.stream();
     let mut top = vec![Tabs::new(run_views).into()];

@@ -9,21 +9,29 @@
 //! /rig/<run>/series/tensions_n            rope 1 and rope 2 tensions (named instances)
 //! /rig/<run>/ropes                         rope 1 and 2 between the pulleys (static), coloured by tension
 //! /rig/<run>/pulleys                       input and output pulleys (static)
-//! /rig/<run>/spokes/{input,output}         a spoke on each pulley (static), turned by the pulley's angle
-//! /bode/<run>/gain_db/{simulated,analytic}   per test frequency, timeline frequency_mhz
-//! /bode/<run>/phase_deg/{simulated,analytic}
+//! /bode/gain_db                            per test frequency (timeline frequency_mhz), every run:
+//! /bode/phase_deg                          instances "<run> simulated", "<run> analytic"
 //! ```
+//!
+//! The ropes are drawn twenty pulley radii long, not to scale (the paper's 15.2 m rope
+//! would hide its 25 mm pulleys), the runs side by side along y. The series are named
+//! after their run (`T147N rope 1`). The default blueprint opens on a Bode tab (gain
+//! and phase of every run) and the `frequency_mhz` timeline; a rig tab shows every
+//! run drawn and its series on `sim_time` (Rerun plots against the time panel's one
+//! timeline).
 
 use longreach_drive::{FrequencyPoint, RigSpec, RigTrace};
+use rerun::blueprint::components::PlayState;
 use rerun::blueprint::{
-    Blueprint, BlueprintActivation, Horizontal, Spatial3DView, Tabs, TimeSeriesView, Vertical,
+    Blueprint, BlueprintActivation, Horizontal, Spatial3DView, Tabs, TimePanel, TimeSeriesView,
+    Vertical,
 };
 use rerun::components::RotationQuat;
-use rerun::{Color, Cylinders3D, LineStrips3D, Quaternion, Transform3D, ViewCoordinates};
+use rerun::{Color, Cylinders3D, LineStrips3D, Quaternion, ViewCoordinates};
 
 use crate::ident::FREQUENCY_TIMELINE;
 use crate::worker::Worker;
-use crate::{tension_color, Columns, RateGate, Recorder, Sink, SIM_TIME};
+use crate::{tension_color, ColorsId, Columns, RateGate, Recorder, SeriesId, Sink, SIM_TIME};
 
 /// Logs the runs of one Bode scenario: `(mean tension, trace, points)` per run (the
 /// runs of a [`BodeLogger`] given all at once).
@@ -61,9 +69,17 @@ impl BodeLogger {
                 "logging the Bode runs",
                 move |rx| {
                     log_layout(&s, &spec, &tensions);
-                    for (k, trace, points) in rx {
-                        log_run(&s, tensions[k], &trace, &points);
+                    let mut points: Vec<Option<Vec<FrequencyPoint>>> = vec![None; tensions.len()];
+                    for (k, trace, run_points) in rx {
+                        let Some(&tension_n) = tensions.get(k) else {
+                            continue;
+                        };
+                        let mut run = RunColumns::new(tension_n);
+                        run.push(&trace);
+                        run.cols.flush(&s);
+                        points[k] = Some(run_points);
                     }
+                    log_points(&s, &tensions, &points);
                 },
             )
         } else {
@@ -96,15 +112,15 @@ fn run_name(tension_n: f64) -> String {
     format!("T{tension_n:.0}N")
 }
 
-/// The static scene of every run (pulleys, ropes, spokes, side by side along y) and
-/// the blueprint (a tab per run).
+/// The static scene of every run (pulleys and ropes, side by side along y) and the
+/// blueprint (a Bode tab and a rig tab).
 fn log_layout(sink: &Sink, spec: &RigSpec, tensions_n: &[f64]) {
     let stream = sink.stream();
     sink.report(
         "view coordinates",
         stream.log_static("/rig", &ViewCoordinates::RIGHT_HAND_Z_UP()),
     );
-    let l = spec.rope_length_m as f32;
+    let l = drawn_span_m(spec) as f32;
     let (r1, r2) = (spec.input_radius_m as f32, spec.output_radius_m as f32);
     let ax = RotationQuat::from(Quaternion::from_xyzw([
         std::f32::consts::FRAC_1_SQRT_2,
@@ -112,7 +128,6 @@ fn log_layout(sink: &Sink, spec: &RigSpec, tensions_n: &[f64]) {
         0.0,
         std::f32::consts::FRAC_1_SQRT_2,
     ]));
-    let mut tabs = Vec::new();
     for (k, &tension_n) in tensions_n.iter().enumerate() {
         let run = run_name(tension_n);
         let y = run_y_m(spec, k) as f32;
@@ -123,12 +138,12 @@ fn log_layout(sink: &Sink, spec: &RigSpec, tensions_n: &[f64]) {
                 &Cylinders3D::from_lengths_and_radii([0.01f32, 0.01], [r1, r2])
                     .with_centers([[0.0, y, 0.0], [l, y, 0.0]])
                     .with_quaternions([ax, ax])
-                    .with_colors([Color::from_rgb(120, 120, 130); 2]),
+                    .with_colors([Color::from_rgb(120, 120, 130); 2])
+                    .with_labels([run.as_str()]),
             ),
         );
-        // The geometry is static: rope 1 runs over the top (+z) of both pulleys, rope 2
-        // under them, and each spoke points along +x in its pulley's frame. A frame
-        // carries the ropes' colours and the pulleys' rotations.
+        // The geometry is static (rope 1 over the top (+z) of both pulleys, rope 2
+        // under them): a frame carries the ropes' colours only.
         sink.report(
             "ropes",
             stream.log_static(
@@ -137,54 +152,56 @@ fn log_layout(sink: &Sink, spec: &RigSpec, tensions_n: &[f64]) {
                     .with_radii([0.002f32]),
             ),
         );
-        for (name, x, r) in [("input", 0.0, r1), ("output", l, r2)] {
-            let entity = format!("/rig/{run}/spokes/{name}");
-            sink.report(
-                "spokes",
-                stream.log_static(
-                    entity.as_str(),
-                    &LineStrips3D::new([[[0.0, 0.0, 0.0], [r, 0.0, 0.0]]])
-                        .with_radii([0.001f32])
-                        .with_colors([Color::from_rgb(240, 240, 240)]),
-                ),
-            );
-            sink.report(
-                "spokes",
-                stream.log_static(
-                    entity.as_str(),
-                    &Transform3D::update_fields().with_translation([x, y, 0.0]),
-                ),
-            );
-        }
-        tabs.push(
-            Vertical::new([
-                Spatial3DView::new(format!("{run} rig"))
-                    .with_origin(format!("/rig/{run}"))
-                    .with_contents([
-                        format!("+ /rig/{run}/ropes"),
-                        format!("+ /rig/{run}/pulleys"),
-                        format!("+ /rig/{run}/spokes/**"),
-                    ])
-                    .into(),
-                TimeSeriesView::new(format!("{run} angles and tensions"))
-                    .with_origin(format!("/rig/{run}/series"))
-                    .into(),
-                Horizontal::new([
-                    TimeSeriesView::new("gain (dB) vs frequency (mHz)")
-                        .with_origin(format!("/bode/{run}/gain_db"))
-                        .into(),
-                    TimeSeriesView::new("phase (deg) vs frequency (mHz)")
-                        .with_origin(format!("/bode/{run}/phase_deg"))
-                        .into(),
-                ])
-                .into(),
-            ])
-            .with_name(run.clone())
-            .into(),
-        );
     }
-    let bp = Blueprint::new(Tabs::new(tabs));
+    // Two tabs, each run a line in every plot: a view or container is a chunk of the
+    // blueprint, and a chunk costs Rerun far more than a row (a tab per run made the
+    // blueprint half the recording's chunks). Rerun plots every series against the
+    // time panel's one timeline (rerun-io/rerun#8050): the recording opens on the Bode
+    // tab and its timeline; the rig tab needs the time panel on sim_time.
+    let every_run = |what: &str| -> Vec<String> {
+        tensions_n
+            .iter()
+            .map(|&t| format!("+ /rig/{}/series/{what}", run_name(t)))
+            .collect()
+    };
+    let bode = Horizontal::new([
+        TimeSeriesView::new("gain (dB) vs frequency (mHz)")
+            .with_origin("/bode/gain_db")
+            .into(),
+        TimeSeriesView::new("phase (deg) vs frequency (mHz)")
+            .with_origin("/bode/phase_deg")
+            .into(),
+    ])
+    .with_name(format!("Bode (timeline {FREQUENCY_TIMELINE})"));
+    let rig = Vertical::new([
+        Spatial3DView::new("the rig at each mean tension (ropes coloured by tension)")
+            .with_origin("/rig")
+            .into(),
+        TimeSeriesView::new("rope tensions (N)")
+            .with_origin("/rig")
+            .with_contents(every_run("tensions_n"))
+            .into(),
+        TimeSeriesView::new("pulley angles (rad)")
+            .with_origin("/rig")
+            .with_contents(every_run("angles_rad"))
+            .into(),
+    ])
+    .with_name(format!("Rig runs (timeline {SIM_TIME})"));
+    let tabs = vec![bode.into(), rig.into()];
+    // Paused: playing would scroll the plots along the frequencies instead of
+    // showing them whole.
+    let bp = Blueprint::new(Tabs::new(tabs)).with_time_panel(
+        TimePanel::new()
+            .with_timeline(FREQUENCY_TIMELINE)
+            .with_play_state(PlayState::Paused),
+    );
     sink.report("blueprint", bp.send(stream, BlueprintActivation::default()));
+}
+
+/// Length of the ropes as drawn, m: twenty pulley radii, whatever the rope's length
+/// (drawn to scale, the paper's 15.2 m rope would leave its 25 mm pulleys invisible).
+fn drawn_span_m(spec: &RigSpec) -> f64 {
+    20.0 * spec.input_radius_m.max(spec.output_radius_m)
 }
 
 /// Where run `k` is drawn along y, m.
@@ -192,57 +209,106 @@ fn run_y_m(spec: &RigSpec, k: usize) -> f64 {
     k as f64 * 4.0 * spec.input_radius_m.max(spec.output_radius_m)
 }
 
-/// The time series of the run at `tension_n` (already decimated) and its gain and
-/// phase per frequency.
-fn log_run(sink: &Sink, tension_n: f64, trace: &RigTrace, points: &[FrequencyPoint]) {
-    let run = run_name(tension_n);
-    let mut cols = Columns::on_duration(SIM_TIME);
-    let names = |a: &str, b: &str| vec![a.to_string(), b.to_string()];
-    let angles = cols.series_group(
-        format!("/rig/{run}/series/angles_rad"),
-        names("input", "output"),
-    );
-    let tensions = cols.series_group(
-        format!("/rig/{run}/series/tensions_n"),
-        names("rope 1", "rope 2"),
-    );
-    let ropes = cols.strip_colors(format!("/rig/{run}/ropes"));
-    let spokes = [
-        cols.rotation(format!("/rig/{run}/spokes/input")),
-        cols.rotation(format!("/rig/{run}/spokes/output")),
-    ];
-    let full = 2.0 * tension_n;
-    for i in 0..trace.time_s.len() {
-        cols.frame_at_s(trace.time_s[i]);
-        let (th, ph) = (trace.input_rad[i], trace.output_rad[i]);
-        let (f1, f2) = (trace.tension_1_n[i], trace.tension_2_n[i]);
-        cols.push_group(angles, [th, ph]);
-        cols.push_group(tensions, [f1, f2]);
-        cols.push_colors(ropes, [tension_color(f1, full), tension_color(f2, full)]);
-        // A rotation about y by -a puts the spoke's end at (r cos a, 0, r sin a).
-        for (id, a) in [(spokes[0], th), (spokes[1], ph)] {
-            let half = -0.5 * a;
-            cols.push_rotation(id, [0.0, half.sin(), 0.0, half.cos()]);
+/// The rig's channels of one run: its two series groups and its ropes' colours.
+struct RunColumns {
+    cols: Columns,
+    angles: SeriesId,
+    tensions: SeriesId,
+    ropes: ColorsId,
+    /// Tension drawn at the top of the colour scale, N: twice the mean tension.
+    full_n: f64,
+}
+
+impl RunColumns {
+    fn new(tension_n: f64) -> Self {
+        let run = run_name(tension_n);
+        let mut cols = Columns::on_duration(SIM_TIME);
+        // Named after the run: a plot shows every run.
+        let names = |a: &str, b: &str| vec![format!("{run} {a}"), format!("{run} {b}")];
+        let angles = cols.series_group(
+            format!("/rig/{run}/series/angles_rad"),
+            names("input", "output"),
+        );
+        let tensions = cols.series_group(
+            format!("/rig/{run}/series/tensions_n"),
+            names("rope 1", "rope 2"),
+        );
+        let ropes = cols.strip_colors(format!("/rig/{run}/ropes"));
+        Self {
+            cols,
+            angles,
+            tensions,
+            ropes,
+            full_n: 2.0 * tension_n,
         }
     }
-    cols.flush(sink);
-    let mut freq = Columns::on_sequence(FREQUENCY_TIMELINE);
-    let g = [
-        freq.series(format!("/bode/{run}/gain_db/simulated")),
-        freq.series(format!("/bode/{run}/gain_db/analytic")),
-        freq.series(format!("/bode/{run}/phase_deg/simulated")),
-        freq.series(format!("/bode/{run}/phase_deg/analytic")),
-    ];
-    for p in points {
-        freq.frame_at((p.frequency_hz * 1e3).round() as i64);
-        for (id, v) in g.iter().zip([
-            p.simulated_gain_db,
-            p.analytic_gain_db,
-            p.simulated_phase_deg,
-            p.analytic_phase_deg,
-        ]) {
-            freq.push(*id, v);
+
+    /// Buffers the frames of `part` (already decimated).
+    fn push(&mut self, part: &RigTrace) {
+        self.cols.reserve(part.time_s.len());
+        for i in 0..part.time_s.len() {
+            let (f1, f2) = (part.tension_1_n[i], part.tension_2_n[i]);
+            self.cols.frame_at_s(part.time_s[i]);
+            self.cols
+                .push_group(self.angles, [part.input_rad[i], part.output_rad[i]]);
+            self.cols.push_group(self.tensions, [f1, f2]);
+            self.cols.push_colors(
+                self.ropes,
+                [
+                    tension_color(f1, self.full_n),
+                    tension_color(f2, self.full_n),
+                ],
+            );
         }
+    }
+}
+
+/// The simulated and analytic gain and phase of every run that reported its points
+/// (`points[k]` for the run at `tensions_n[k]`) per test frequency, once all are in:
+/// two entities for all runs (a chunk costs Rerun far more than a value), a line per
+/// run and model, NaN where a run lacks a frequency.
+fn log_points(sink: &Sink, tensions_n: &[f64], points: &[Option<Vec<FrequencyPoint>>]) {
+    let runs: Vec<(String, &[FrequencyPoint])> = tensions_n
+        .iter()
+        .zip(points)
+        .filter_map(|(&t, p)| Some((run_name(t), p.as_deref()?)))
+        .collect();
+    let mut mhz: Vec<i64> = runs
+        .iter()
+        .flat_map(|(_, p)| p.iter().map(|p| (p.frequency_hz * 1e3).round() as i64))
+        .collect();
+    mhz.sort_unstable();
+    mhz.dedup();
+    if mhz.is_empty() {
+        return;
+    }
+    let names: Vec<String> = runs
+        .iter()
+        .flat_map(|(run, _)| [format!("{run} simulated"), format!("{run} analytic")])
+        .collect();
+    let mut freq = Columns::on_sequence(FREQUENCY_TIMELINE);
+    let gain = freq.series_group("/bode/gain_db", names.clone());
+    let phase = freq.series_group("/bode/phase_deg", names);
+    for &f in &mhz {
+        freq.frame_at(f);
+        let at = |p: &[FrequencyPoint]| {
+            p.iter()
+                .find(|p| (p.frequency_hz * 1e3).round() as i64 == f)
+                .copied()
+        };
+        let nan = f64::NAN;
+        freq.push_group(
+            gain,
+            runs.iter().flat_map(|(_, p)| {
+                at(p).map_or([nan; 2], |p| [p.simulated_gain_db, p.analytic_gain_db])
+            }),
+        );
+        freq.push_group(
+            phase,
+            runs.iter().flat_map(|(_, p)| {
+                at(p).map_or([nan; 2], |p| [p.simulated_phase_deg, p.analytic_phase_deg])
+            }),
+        );
     }
     freq.flush(sink);
 }
