@@ -3,12 +3,12 @@
 
 Runs `longreach run SCENARIO --out DIR` (with `--command bode`: `longreach bode
 SCENARIO --quiet`) without and with `--rerun save:FILE`, back to back, PAIRS times
-(the order alternates), and prints the median and quartiles of the
-per-pair ratio with/without, of wall time and of CPU time (user + system, every
-thread: on a busy machine the steadier of the two, and what a multi-threaded
-command like `bode` pays when its cores are all busy): on a shared machine whose speed drifts by a factor of
-two from one second to the next, a ratio of two neighbouring runs is steadier than
-the ratio of two separately measured averages (what `cargo bench --bench rerun --
+(the order alternates; each recording is a new file), and prints the median and
+quartiles of the per-pair ratio with/without, of wall time and of CPU time (user +
+system, every thread: steadier on a busy machine, and what `bode`, whose runs keep
+every core busy, pays). On a shared machine whose speed drifts by a factor of two
+from one second to the next, a ratio of two neighbouring runs is steadier than the
+ratio of two separately measured averages (what `cargo bench --bench rerun --
 rerun_cli` gives).
 
 Usage: tools/rerun_overhead.py [--bin target/release/longreach] [--pairs 40]
