@@ -113,18 +113,9 @@ pub fn log_comparison(
                 .collect()
         };
         run_views.push(
-            Horizontal::new([
-                TimeSeriesView::new("gain (dB) vs frequency (mHz)")
-                    .with_origin("/frequency")
-                    .with_contents(every_run("gain_db"))
-                    .into(),
-                TimeSeriesView::new("phase (deg) vs frequency (mHz)")
-                    .with_origin("/frequency")
-                    .with_contents(every_run("phase_deg"))
-                    .into(),
-            ])
-            .with_name(format!("frequency response ({FREQUENCY_TIMELINE})"))
-            .into(),
+            gain_and_phase("/frequency", every_run)
+                .with_name(format!("frequency response ({FREQUENCY_TIMELINE})"))
+                .into(),
         );
     }
     let stream = rec.stream();
@@ -175,6 +166,21 @@ pub fn log_comparison(
     }
     let bp = Blueprint::new(Horizontal::new(top));
     rec.report("blueprint", bp.send(stream, BlueprintActivation::default()));
+}
+
+/// Gain and phase plots side by side (on [`FREQUENCY_TIMELINE`]): views of `origin`
+/// showing `contents("gain_db")` and `contents("phase_deg")`.
+pub(crate) fn gain_and_phase(origin: &str, contents: impl Fn(&str) -> Vec<String>) -> Horizontal {
+    Horizontal::new([
+        TimeSeriesView::new("gain (dB) vs frequency (mHz)")
+            .with_origin(origin)
+            .with_contents(contents("gain_db"))
+            .into(),
+        TimeSeriesView::new("phase (deg) vs frequency (mHz)")
+            .with_origin(origin)
+            .with_contents(contents("phase_deg"))
+            .into(),
+    ])
 }
 
 /// A run name as one entity-path part (letters, digits, `_`, `-`, `.`).

@@ -23,13 +23,12 @@
 use longreach_drive::{FrequencyPoint, RigSpec, RigTrace};
 use rerun::blueprint::components::PlayState;
 use rerun::blueprint::{
-    Blueprint, BlueprintActivation, Horizontal, Spatial3DView, Tabs, TimePanel, TimeSeriesView,
-    Vertical,
+    Blueprint, BlueprintActivation, Spatial3DView, Tabs, TimePanel, TimeSeriesView, Vertical,
 };
 use rerun::components::RotationQuat;
 use rerun::{Color, Cylinders3D, LineStrips3D, Quaternion, ViewCoordinates};
 
-use crate::ident::FREQUENCY_TIMELINE;
+use crate::ident::{gain_and_phase, FREQUENCY_TIMELINE};
 use crate::worker::Worker;
 use crate::{tension_color, ColorsId, Columns, RateGate, Recorder, SeriesId, Sink, SIM_TIME};
 
@@ -50,7 +49,8 @@ type BodeRun = (usize, RigTrace, Vec<FrequencyPoint>);
 /// Logs the runs of one Bode scenario as they finish, on a thread of its own: the
 /// runs of a scenario are simulated in parallel and each is logged (decimated to the
 /// recorder's rate, its columns built and sent) while the others are still running.
-/// The static scene of every run and the blueprint are logged first.
+/// The static scene of every run and the blueprint are logged first; the gain and
+/// phase of every run that was handed over, last ([`BodeLogger::finish`]).
 #[derive(Debug)]
 pub struct BodeLogger {
     hz: f64,
@@ -164,15 +164,8 @@ fn log_layout(sink: &Sink, spec: &RigSpec, tensions_n: &[f64]) {
             .map(|&t| format!("+ /rig/{}/series/{what}", run_name(t)))
             .collect()
     };
-    let bode = Horizontal::new([
-        TimeSeriesView::new("gain (dB) vs frequency (mHz)")
-            .with_origin("/bode/gain_db")
-            .into(),
-        TimeSeriesView::new("phase (deg) vs frequency (mHz)")
-            .with_origin("/bode/phase_deg")
-            .into(),
-    ])
-    .with_name(format!("Bode (timeline {FREQUENCY_TIMELINE})"));
+    let bode = gain_and_phase("/bode", |what| vec![format!("+ /bode/{what}")])
+        .with_name(format!("Bode (timeline {FREQUENCY_TIMELINE})"));
     let rig = Vertical::new([
         Spatial3DView::new("the rig at each mean tension (ropes coloured by tension)")
             .with_origin("/rig")
