@@ -30,7 +30,7 @@ use rerun::{Color, Cylinders3D, LineStrips3D, Quaternion, ViewCoordinates};
 
 use crate::ident::{gain_and_phase, FREQUENCY_TIMELINE};
 use crate::worker::Worker;
-use crate::{tension_color, ColorsId, Columns, RateGate, Recorder, SeriesId, Sink, SIM_TIME};
+use crate::{tension_color, Columns, RateGate, Recorder, Sink, SIM_TIME};
 
 /// Logs the runs of one Bode scenario: `(mean tension, trace, points)` per run (the
 /// runs of a [`BodeLogger`] given all at once).
@@ -74,9 +74,7 @@ impl BodeLogger {
                         let Some(&tension_n) = tensions.get(k) else {
                             continue;
                         };
-                        let mut run = RunColumns::new(tension_n);
-                        run.push(&trace);
-                        run.cols.flush(&s);
+                        log_trace(&s, tension_n, &trace);
                         points[k] = Some(run_points);
                     }
                     log_points(&s, &tensions, &points);
@@ -202,58 +200,36 @@ fn run_y_m(spec: &RigSpec, k: usize) -> f64 {
     k as f64 * 4.0 * spec.input_radius_m.max(spec.output_radius_m)
 }
 
-/// The rig's channels of one run: its two series groups and its ropes' colours.
-struct RunColumns {
-    cols: Columns,
-    angles: SeriesId,
-    tensions: SeriesId,
-    ropes: ColorsId,
-    /// Tension drawn at the top of the colour scale, N: twice the mean tension.
-    full_n: f64,
-}
-
-impl RunColumns {
-    fn new(tension_n: f64) -> Self {
-        let run = run_name(tension_n);
-        let mut cols = Columns::on_duration(SIM_TIME);
-        // Named after the run: a plot shows every run.
-        let names = |a: &str, b: &str| vec![format!("{run} {a}"), format!("{run} {b}")];
-        let angles = cols.series_group(
-            format!("/rig/{run}/series/angles_rad"),
-            names("input", "output"),
-        );
-        let tensions = cols.series_group(
-            format!("/rig/{run}/series/tensions_n"),
-            names("rope 1", "rope 2"),
-        );
-        let ropes = cols.strip_colors(format!("/rig/{run}/ropes"));
-        Self {
-            cols,
-            angles,
-            tensions,
+/// The time series of the run at `tension_n` (`trace` already decimated): its two
+/// series groups and its ropes' colours, one chunk each.
+fn log_trace(sink: &Sink, tension_n: f64, trace: &RigTrace) {
+    let run = run_name(tension_n);
+    let mut cols = Columns::on_duration(SIM_TIME);
+    // Named after the run: a plot shows every run.
+    let names = |a: &str, b: &str| vec![format!("{run} {a}"), format!("{run} {b}")];
+    let angles = cols.series_group(
+        format!("/rig/{run}/series/angles_rad"),
+        names("input", "output"),
+    );
+    let tensions = cols.series_group(
+        format!("/rig/{run}/series/tensions_n"),
+        names("rope 1", "rope 2"),
+    );
+    let ropes = cols.strip_colors(format!("/rig/{run}/ropes"));
+    // Twice the mean tension at the top of the colour scale.
+    let full_n = 2.0 * tension_n;
+    cols.reserve(trace.time_s.len());
+    for i in 0..trace.time_s.len() {
+        let (f1, f2) = (trace.tension_1_n[i], trace.tension_2_n[i]);
+        cols.frame_at_s(trace.time_s[i]);
+        cols.push_group(angles, [trace.input_rad[i], trace.output_rad[i]]);
+        cols.push_group(tensions, [f1, f2]);
+        cols.push_colors(
             ropes,
-            full_n: 2.0 * tension_n,
-        }
+            [tension_color(f1, full_n), tension_color(f2, full_n)],
+        );
     }
-
-    /// Buffers the frames of `part` (already decimated).
-    fn push(&mut self, part: &RigTrace) {
-        self.cols.reserve(part.time_s.len());
-        for i in 0..part.time_s.len() {
-            let (f1, f2) = (part.tension_1_n[i], part.tension_2_n[i]);
-            self.cols.frame_at_s(part.time_s[i]);
-            self.cols
-                .push_group(self.angles, [part.input_rad[i], part.output_rad[i]]);
-            self.cols.push_group(self.tensions, [f1, f2]);
-            self.cols.push_colors(
-                self.ropes,
-                [
-                    tension_color(f1, self.full_n),
-                    tension_color(f2, self.full_n),
-                ],
-            );
-        }
-    }
+    cols.flush(sink);
 }
 
 /// The simulated and analytic gain and phase of every run that reported its points
