@@ -1,6 +1,8 @@
 //! Wall time per step of the driven arm (no criterion; the criterion version is
 //! `benches/arm.rs` of the root package):
-//! `cargo run --release -p longreach-arm --example driven_step_cost`.
+//! `cargo run --release -p longreach-arm --example driven_step_cost [FILTER] [STEPS]`
+//! (only the models whose label contains FILTER, e.g. `relay`; STEPS per repetition,
+//! default 20000: a short run suits callgrind).
 
 use std::path::Path;
 use std::time::Instant;
@@ -18,7 +20,13 @@ fn cpu_ns() -> f64 {
 }
 
 fn time(label: &str, arm: &DrivenArm) {
-    let steps = 20_000;
+    let mut args = std::env::args().skip(1);
+    if !label.contains(args.next().as_deref().unwrap_or("")) {
+        return;
+    }
+    let steps: usize = args
+        .next()
+        .map_or(20_000, |s| s.parse().expect("STEPS: a count"));
     for rep in 0..3 {
         let mut st = arm.initial_state();
         let t0 = Instant::now();

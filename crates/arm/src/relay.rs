@@ -337,6 +337,8 @@ pub(crate) struct RelayScratch {
     damping: Vec<f64>,
     /// Relays whose last update jumped across the stick band.
     crossed: Vec<bool>,
+    /// Tridiagonal system of one rope side's relays (sub, diagonal, super, right side).
+    tri: Vec<[f64; 4]>,
 }
 
 impl RelayScratch {
@@ -359,6 +361,7 @@ impl RelayScratch {
             prev_step: vec![0.0; 2 * c.relays()],
             damping: vec![1.0; 2 * c.relays()],
             crossed: vec![false; 2 * c.relays()],
+            tri: vec![[0.0; 4]; c.relays()],
         }
     }
 }
@@ -856,6 +859,105 @@ pub(crate) fn solve_crossed_relays(
                     break;
                 }
             }
+        }
+    }
+}
+
+/// Newton iterations of [`relax_relays`] at most.
+const RELAX_MAX_ITERATIONS: u32 = 6;
+
+/// Newton on the relay equations of one pair alone, the joints, the motor and the
+/// tensioner held at their trial values. Along one rope the relays form a chain (relay
+/// `l` shares span `l + 1` with relay `l + 1`), so each iteration is a tridiagonal solve
+/// with fresh derivatives, until every update is below a tenth of the tolerance. A relay
+/// whose rate would jump across the stick band is put in its middle instead (as in
+/// [`apply_relay_update`]); the next iteration has the band's slope.
+///
+/// The global Newton iteration that follows starts from relays that meet their own
+/// equations at the joints' trial angles: on the relay-friction scenario a step takes
+/// 1.45 iterations instead of 1.77 at the same tolerance (docs/arm.md, "Speed").
+#[inline(never)]
+pub(crate) fn relax_relays(
+    c: &CompiledRelays,
+    stepper: &RopeStepper,
+    sc: &mut RelayScratch,
+    inp: &Local<'_>,
+    x_m: f64,
+    tol: f64,
+) {
+    let (m, ns) = (c.relays(), c.spans());
+    let h = inp.h;
+    let (two_h, four_h2) = (2.0 / h, 4.0 / (h * h));
+    let jr = c.friction.inertia_kg_m2;
+    let slip = c.friction.slip_rate_rad_s;
+    for _ in 0..RELAX_MAX_ITERATIONS {
+        let mut worst = 0.0f64;
+        for side in 0..2 {
+            for i in 0..ns {
+                let gq = c.gq(i, inp.q);
+                let (f, k, _) = span_tension(c, stepper, inp, gq, x_m, &sc.psi1, &sc.prep, side, i);
+                sc.f[side * ns + i] = f;
+                sc.k[side * ns + i] = k;
+            }
+            for rl in 0..m {
+                let (g, t) = relay_residual(c, inp, &sc.psi1, &sc.f, side, rl);
+                let r = c.radius_m[rl];
+                let (ka, kb) = (sc.k[side * ns + rl], sc.k[side * ns + rl + 1]);
+                let ts = t.d_tension_sum_m;
+                let diag =
+                    four_h2 * jr + two_h * t.d_rate_n_m_s + ts * r * (ka - kb) + r * r * (ka + kb);
+                let sub = if rl > 0 {
+                    -(ts + r) * ka * c.radius_m[rl - 1]
+                } else {
+                    0.0
+                };
+                let sup = if rl + 1 < m {
+                    (ts - r) * kb * c.radius_m[rl + 1]
+                } else {
+                    0.0
+                };
+                sc.tri[rl] = [sub, diag, sup, -g];
+            }
+            // Thomas algorithm (the chain is diagonally dominant: inertia and friction
+            // slope add to the diagonal).
+            for rl in 1..m {
+                let prev = sc.tri[rl - 1][1];
+                // A pinned relay (no inertia, no friction, both spans slack) stays put.
+                let w = if prev == 0.0 {
+                    0.0
+                } else {
+                    sc.tri[rl][0] / prev
+                };
+                sc.tri[rl][1] -= w * sc.tri[rl - 1][2];
+                sc.tri[rl][3] -= w * sc.tri[rl - 1][3];
+            }
+            let mut next = 0.0;
+            for rl in (0..m).rev() {
+                let [_, d, sup, rhs] = sc.tri[rl];
+                let dz = if d == 0.0 {
+                    0.0
+                } else {
+                    (rhs - sup * next) / d
+                };
+                next = if dz.is_finite() { dz } else { 0.0 };
+                let k = side * m + rl;
+                let (psi0, w0) = (
+                    inp.state.angle_rad[rl][side],
+                    inp.state.rate_rad_s[rl][side],
+                );
+                let old = sc.psi1[k];
+                let mut new = if dz.is_finite() { old + dz } else { old };
+                let w_old = two_h * (old - psi0) - w0;
+                let w_new = two_h * (new - psi0) - w0;
+                if c.friction.coefficient > 0.0 && w_old * w_new < 0.0 && w_new.abs() > slip {
+                    new = psi0 + 0.5 * h * w0;
+                }
+                sc.psi1[k] = new;
+                worst = worst.max((new - old).abs() / (tol * (1.0 + new.abs())));
+            }
+        }
+        if worst <= 0.1 {
+            break;
         }
     }
 }

@@ -69,12 +69,14 @@ pub struct DrivenArm {
     pub newton_tolerance: f64,
 }
 
-/// Default [`DrivenArm::newton_tolerance`] of an arm with relay friction, rad (0.2 nm
-/// of rope on a 0.2 m pulley). On `arm_dyneema2_base_step_relay_friction.toml` (10 s)
-/// the joint angles of a 1e-10, 1e-9 and 1e-8 solve stay within 9.3e-10, 3.2e-9 and
-/// 2.3e-7 rad of a 1e-13 solve, for 2.23, 1.91 and 1.77 Newton iterations per step
-/// (2.92 at 1e-13).
-pub const RELAY_NEWTON_TOLERANCE: f64 = 1e-9;
+/// Default [`DrivenArm::newton_tolerance`] of an arm with relay friction, rad (2 nm of
+/// rope on a 0.2 m pulley). On `arm_dyneema2_base_step_relay_friction.toml` (10 s) the
+/// joint angles of a 1e-8, 1e-9 and 1e-10 solve stay within 2.2e-9, 1.1e-9 and 5.4e-11
+/// rad of a 1e-13 solve, for 1.45, 1.50 and 1.75 Newton iterations per step (2.55 at
+/// 1e-13; `cargo run --release -p longreach-arm --example relay_tolerance`). Before the
+/// relays were solved alone ([`crate::relay`] `relax_relays`), 1e-9 gave 3.2e-9 rad for
+/// 1.91 iterations and 1e-8 gave 2.3e-7 rad.
+pub const RELAY_NEWTON_TOLERANCE: f64 = 1e-8;
 
 /// Mutable state of a [`DrivenArm`] (and its scratch).
 #[derive(Debug, Clone)]
@@ -999,16 +1001,23 @@ impl DrivenArm {
                 }
                 update = update.max(d.abs() / (tol * (1.0 + sc.q1[j].abs())));
             }
+            let joint_update = update;
+            // The relays of a pair were solved alone after this update.
+            let mut relaxed = false;
             for (p, pair) in self.pairs.iter().enumerate() {
                 if let (Some(c), Some(rs)) = (&pair.relays, sc.relay[p].as_mut()) {
                     if !self.friction_pair_update(p, c, rs, &sc.rhs, &mut th1, &mut x1, tol) {
                         small = false;
                     }
-                    update = update.max(relay::largest_update(c, rs, tol));
+                    let local_update = relay::largest_update(c, rs, tol);
+                    update = update.max(local_update);
                     let done = relay::apply_relay_update(c, rs, &st.relays[p], h, iterations, tol);
                     small &= done.small;
                     guarded |= done.guarded;
-                    if done.guarded {
+                    let relax = !done.guarded
+                        && iterations <= RELAX_ITERATIONS
+                        && local_update > RELAX_RATIO * joint_update.max(1.0);
+                    if done.guarded || relax {
                         let inp = Local {
                             h,
                             n: pair.n,
@@ -1019,7 +1028,12 @@ impl DrivenArm {
                             q: &sc.q1,
                             state: &st.relays[p],
                         };
-                        relay::solve_crossed_relays(c, &pair.stepper, rs, &inp, x1[p], tol);
+                        if relax {
+                            relaxed = true;
+                            relay::relax_relays(c, &pair.stepper, rs, &inp, x1[p], tol);
+                        } else {
+                            relay::solve_crossed_relays(c, &pair.stepper, rs, &inp, x1[p], tol);
+                        }
                     }
                     continue;
                 }
@@ -1064,8 +1078,14 @@ impl DrivenArm {
                     && rate < 0.5
                     && update * rate <= CHORD_ERROR;
             }
-            // A relay moved by a safeguard has not met its equation yet.
-            small &= !guarded;
+            // A relay moved by a safeguard, or solved alone, has not met the coupled
+            // equations yet.
+            small &= !guarded && !relaxed;
+            if relaxed {
+                // The relays now meet their own equations at the joints' update: what is
+                // left to measure is the joints'.
+                update = joint_update;
+            }
             if small && flips < 4 {
                 for (p, pair) in self.pairs.iter().enumerate() {
                     if let MotorMode::Servo {
@@ -1099,7 +1119,10 @@ impl DrivenArm {
             // The next iteration keeps the Newton matrix (chord) while the updates
             // shrink fast; a fresh one otherwise.
             let was_refresh = refresh;
-            let contracted = update < CHORD_CONTRACTION * last_update;
+            // After relays were solved alone, a fresh Newton matrix for the rest of the
+            // step (their slopes changed; a kept matrix left errors of 1e-8 rad where a
+            // fresh one leaves 2e-9, tools: examples/relay_tolerance.rs).
+            let contracted = !relaxed && update < CHORD_CONTRACTION * last_update;
             if !was_refresh && !contracted {
                 // A chord update that did not shrink: full Newton for the rest of the step.
                 chord_allowed = false;
@@ -1331,6 +1354,14 @@ const CHORD_ERROR: f64 = 1e-2;
 
 /// ...and the update itself below this many tolerances.
 const CHORD_ACCEPT_UPDATE: f64 = 1e3;
+
+/// Relays are solved alone ([`relay::relax_relays`]) after a Newton update of the first
+/// this many iterations of a step...
+const RELAX_ITERATIONS: u32 = 4;
+
+/// ...whose local update (relays, motor) is this many times the joints' (in
+/// tolerances, at least one).
+const RELAX_RATIO: f64 = 10.0;
 
 /// Steps a kept Newton matrix may start: then a fresh one (a matrix kept over many
 /// steps lets errors far below the tolerance accumulate: 2e-11 rad over 0.6 s in the

@@ -57,7 +57,14 @@ impl RelayFriction {
     /// hub load `tension_sum_n` and turning at `rate_rad_s` [N*m], with its partial
     /// derivatives with respect to the hub load and to the rate.
     pub fn torque_n_m(&self, radius_m: f64, tension_sum_n: f64, rate_rad_s: f64) -> RelayTorque {
-        let s = (rate_rad_s / self.slip_rate_rad_s).tanh();
+        let x = rate_rad_s / self.slip_rate_rad_s;
+        // Beyond |x| = 22, tanh rounds to +-1 (glibc returns exactly that): sliding
+        // pulleys skip the call, with bitwise the same result.
+        let s = if x.abs() >= 22.0 {
+            x.signum()
+        } else {
+            x.tanh()
+        };
         let scale = self.coefficient * radius_m;
         RelayTorque {
             torque_n_m: scale * tension_sum_n * s,
