@@ -751,8 +751,6 @@ pub(crate) fn apply_relay_update(
     tol: f64,
 ) -> RelayUpdate {
     let m = c.relays();
-    let slip = c.friction.slip_rate_rad_s;
-    let two_h = 2.0 / h;
     let mut small = true;
     let mut guarded = false;
     for side in 0..2 {
@@ -769,9 +767,7 @@ pub(crate) fn apply_relay_update(
             }
             sc.prev_step[k] = raw;
             let mut new = old + raw * sc.damping[k];
-            let w_old = two_h * (old - psi0) - w0;
-            let w_new = two_h * (new - psi0) - w0;
-            if c.friction.coefficient > 0.0 && w_old * w_new < 0.0 && w_new.abs() > slip {
+            if jumps_stick_band(c, h, psi0, w0, old, new) {
                 // Across the stick band: solved alone next ([`solve_crossed_relays`]).
                 new = psi0 + 0.5 * h * w0;
                 sc.crossed[k] = true;
@@ -863,6 +859,17 @@ pub(crate) fn solve_crossed_relays(
     }
 }
 
+/// Whether moving a relay's end-of-step angle from `old` to `new` (rad; start of the
+/// step at `psi0`, rate `w0`) takes its end rate from one sliding direction to the
+/// other, beyond the slip rate: Newton on the regularised Coulomb law overshoots from
+/// one plateau across the steep stick band. Such a relay is put in the band's middle,
+/// end rate zero (`psi0 + h w0 / 2`).
+fn jumps_stick_band(c: &CompiledRelays, h: f64, psi0: f64, w0: f64, old: f64, new: f64) -> bool {
+    let w_old = 2.0 / h * (old - psi0) - w0;
+    let w_new = 2.0 / h * (new - psi0) - w0;
+    c.friction.coefficient > 0.0 && w_old * w_new < 0.0 && w_new.abs() > c.friction.slip_rate_rad_s
+}
+
 /// Newton iterations of [`relax_relays`] at most.
 const RELAX_MAX_ITERATIONS: u32 = 6;
 
@@ -889,7 +896,6 @@ pub(crate) fn relax_relays(
     let h = inp.h;
     let (two_h, four_h2) = (2.0 / h, 4.0 / (h * h));
     let jr = c.friction.inertia_kg_m2;
-    let slip = c.friction.slip_rate_rad_s;
     for _ in 0..RELAX_MAX_ITERATIONS {
         let mut worst = 0.0f64;
         for side in 0..2 {
@@ -947,9 +953,7 @@ pub(crate) fn relax_relays(
                 );
                 let old = sc.psi1[k];
                 let mut new = if dz.is_finite() { old + dz } else { old };
-                let w_old = two_h * (old - psi0) - w0;
-                let w_new = two_h * (new - psi0) - w0;
-                if c.friction.coefficient > 0.0 && w_old * w_new < 0.0 && w_new.abs() > slip {
+                if jumps_stick_band(c, h, psi0, w0, old, new) {
                     new = psi0 + 0.5 * h * w0;
                 }
                 sc.psi1[k] = new;
