@@ -689,6 +689,10 @@ pub(crate) fn assemble(
     for (a, &ca) in c.cols.iter().enumerate() {
         acc.fill(0.0);
         for (&u, yrow) in kqz[a * l..(a + 1) * l].iter().zip(brhs.chunks_exact(w)) {
+            // Most unknowns do not touch a given joint's spans: skip their zero rows.
+            if u == 0.0 {
+                continue;
+            }
             for (s, y) in acc.iter_mut().zip(yrow) {
                 *s += u * y;
             }
@@ -1129,7 +1133,9 @@ pub(crate) fn lu_solve_banded(
     _tmp: &mut [f64],
 ) {
     for k in 0..n {
-        b.swap(k, perm[k]);
+        if perm[k] != k {
+            b.swap(k, perm[k]);
+        }
         let bk = b[k];
         if bk != 0.0 {
             for i in k + 1..=(k + p).min(n - 1) {
