@@ -212,30 +212,32 @@ fn every_relay_meets_its_equation_at_every_step_through_stick_slip() {
     let mut st = arm.initial_state();
     let mut worst = 0.0f64;
     let mut iterations = 0u64;
+    let mut at_default = Vec::with_capacity(1500);
     for _ in 0..1500 {
         arm.step(&mut st).unwrap();
         worst = worst.max(worst_relay_residual(&arm, &st));
         iterations += u64::from(st.iterations);
+        at_default.push(st.q_rad.clone());
     }
     println!(
         "worst relay residual {worst:.3e} of the friction capacity, {:.2} Newton iterations per step",
         iterations as f64 / 1500.0
     );
-    assert!(worst < 1e-2, "{worst}");
-    // Tolerance of the default solve: the same run solved to 1e-12 agrees to 1e-7 rad.
-    let at_default = st.q_rad.clone();
+    assert!(worst < 1e-3, "{worst}");
+    // Tolerance of the default solve: the same run solved to 1e-12 stays within 1e-8 rad
+    // at every step (with the relays solved alone: 1.8e-9; before, the old default of
+    // 1e-9 gave 3.2e-9 over 10 s and 1e-8 gave 2.3e-7).
     arm.newton_tolerance = 1e-12;
     let mut tight = arm.initial_state();
-    for _ in 0..1500 {
+    let mut gap = 0.0f64;
+    for q in &at_default {
         arm.step(&mut tight).unwrap();
+        for (a, b) in q.iter().zip(&tight.q_rad) {
+            gap = gap.max((a - b).abs());
+        }
     }
-    let gap = at_default
-        .iter()
-        .zip(&tight.q_rad)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0f64, f64::max);
-    println!("joint angles at 1.5 s: default vs 1e-12 solve differ by {gap:.3e} rad");
-    assert!(gap < 1e-7, "{gap}");
+    println!("joint angles over 1.5 s: default vs 1e-12 solve differ by {gap:.3e} rad at most");
+    assert!(gap < 1e-8, "{gap}");
 }
 
 fn arm5_friction(friction: Option<RelayFriction>) -> DrivenArm {
