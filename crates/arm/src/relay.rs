@@ -437,9 +437,29 @@ fn span_tension(
     (f, k * c.inv_span_length[i], strain)
 }
 
-/// Tensions and stiffnesses of every span at the trial state into `sc.f`, `sc.k`;
-/// false when both motor-side spans are slack under a constant-force tensioner (`x_m`
-/// then moved to take up the slack: redo the iteration).
+/// Tensions and stiffnesses of every span of both ropes at the trial state into
+/// `sc.f`, `sc.k` (`G_i . q` once per span).
+fn evaluate_spans(
+    c: &CompiledRelays,
+    stepper: &RopeStepper,
+    sc: &mut RelayScratch,
+    inp: &Local<'_>,
+    x_m: f64,
+) {
+    let ns = c.spans();
+    for i in 0..ns {
+        let gq = c.gq(i, inp.q);
+        for side in 0..2 {
+            let (f, k, _) = span_tension(c, stepper, inp, gq, x_m, &sc.psi1, &sc.prep, side, i);
+            sc.f[side * ns + i] = f;
+            sc.k[side * ns + i] = k;
+        }
+    }
+}
+
+/// [`evaluate_spans`]; false when both motor-side spans are slack under a
+/// constant-force tensioner (`x_m` then moved to take up the slack: redo the
+/// iteration).
 fn span_tensions(
     c: &CompiledRelays,
     stepper: &RopeStepper,
@@ -448,14 +468,7 @@ fn span_tensions(
     x_m: &mut f64,
 ) -> bool {
     let ns = c.spans();
-    for i in 0..ns {
-        let gq = c.gq(i, inp.q);
-        for side in 0..2 {
-            let (f, k, _) = span_tension(c, stepper, inp, gq, *x_m, &sc.psi1, &sc.prep, side, i);
-            sc.f[side * ns + i] = f;
-            sc.k[side * ns + i] = k;
-        }
-    }
+    evaluate_spans(c, stepper, sc, inp, *x_m);
     if inp.constant_force_n.is_some() && sc.k[0] + sc.k[ns] == 0.0 {
         // Both motor-side spans slack: the carriage takes up the slack first.
         let need = |side: usize| {
@@ -902,13 +915,10 @@ pub(crate) fn relax_relays(
     let jr = c.friction.inertia_kg_m2;
     for _ in 0..RELAX_MAX_ITERATIONS {
         let mut worst = 0.0f64;
+        // The two ropes' relays do not share a span: both are solved from one
+        // evaluation.
+        evaluate_spans(c, stepper, sc, inp, x_m);
         for side in 0..2 {
-            for i in 0..ns {
-                let gq = c.gq(i, inp.q);
-                let (f, k, _) = span_tension(c, stepper, inp, gq, x_m, &sc.psi1, &sc.prep, side, i);
-                sc.f[side * ns + i] = f;
-                sc.k[side * ns + i] = k;
-            }
             for rl in 0..m {
                 let (g, t) = relay_residual(c, inp, &sc.psi1, &sc.f, side, rl);
                 let r = c.radius_m[rl];
