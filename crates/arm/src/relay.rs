@@ -173,16 +173,32 @@ impl CompiledRelays {
     }
 
     /// Derivative of the elongation of span `i` of rope `side` with respect to the
-    /// local unknowns (motor radius `rm`): at most four entries `(unknown, value)`.
-    fn span_local_derivative(&self, side: usize, i: usize, rm: f64) -> ([(usize, f64); 4], usize) {
+    /// free local unknowns (motor radius `rm`; the motor angle and the tensioner
+    /// stretch only when free): at most four entries `(unknown, value)`. A held unknown
+    /// keeps an identity row with a zero right side, so its update is zero and its
+    /// column can be left out; left in, its entries (span stiffnesses, about 3e4 N/m,
+    /// against the identity's 1) would make every LU interchange rows.
+    fn span_local_derivative(
+        &self,
+        side: usize,
+        i: usize,
+        rm: f64,
+        motor_free: bool,
+        x_free: bool,
+    ) -> ([(usize, f64); 4], usize) {
         let m = self.relays();
         let sg = if side == 0 { 1.0 } else { -1.0 };
         let mut out = [(0usize, 0.0f64); 4];
         let mut len = 0;
         if i == 0 {
-            out[0] = (self.iz_theta(), sg * rm);
-            out[1] = (self.iz_x(), 1.0);
-            len = 2;
+            if motor_free {
+                out[len] = (self.iz_theta(), sg * rm);
+                len += 1;
+            }
+            if x_free {
+                out[len] = (self.iz_x(), 1.0);
+                len += 1;
+            }
         }
         if i >= 1 {
             out[len] = (self.iz_psi(side, i - 1), -self.radius_m[i - 1]);
@@ -321,6 +337,8 @@ pub(crate) struct RelayScratch {
     /// `[K_zz^-1 r_z | K_zz^-1 K_zq]`.
     rhs: Vec<f64>,
     perm: Vec<usize>,
+    /// Upper bandwidth of the factor of `kzz` ([`lu_in_place_banded`]).
+    upper: usize,
     /// Local derivatives of every span's elongation (index `side * spans + i`).
     de: Vec<([(usize, f64); 4], usize)>,
     tmp: Vec<f64>,
@@ -353,6 +371,7 @@ impl RelayScratch {
             kqz: vec![0.0; nc * l],
             rhs: vec![0.0; l * (nc + 1)],
             perm: vec![0; l],
+            upper: 2 * LOCAL_BANDWIDTH,
             de: vec![([(0, 0.0); 4], 0); s],
             tmp: vec![0.0; nc + 1],
             pinned: vec![false; l],
@@ -559,7 +578,7 @@ pub(crate) fn assemble_residual(
             }
         }
     }
-    lu_solve_banded(&sc.kzz, l, LOCAL_BANDWIDTH, &sc.perm, y, &mut []);
+    lu_solve_banded(&sc.kzz, l, LOCAL_BANDWIDTH, sc.upper, &sc.perm, y);
     for (z, &v) in y.iter().enumerate() {
         sc.rhs[z * w] = v;
     }
@@ -600,9 +619,11 @@ pub(crate) fn assemble(
     sc.kzz.fill(0.0);
     sc.rhs.fill(0.0);
     sc.kqz.fill(0.0);
+    let motor_free = matches!(inp.motor, MotorRow::Servo { .. });
+    let x_free = inp.constant_force_n.is_some();
     for side in 0..2 {
         for i in 0..ns {
-            sc.de[side * ns + i] = c.span_local_derivative(side, i, rm);
+            sc.de[side * ns + i] = c.span_local_derivative(side, i, rm, motor_free, x_free);
         }
     }
     let (kzz, brhs, kqz) = (&mut sc.kzz, &mut sc.rhs, &mut sc.kqz);
@@ -693,10 +714,11 @@ pub(crate) fn assemble(
             }
         }
     }
-    if !lu_in_place_banded(kzz, l, LOCAL_BANDWIDTH, &mut sc.perm) {
+    let Some(upper) = lu_in_place_banded(kzz, l, LOCAL_BANDWIDTH, &mut sc.perm) else {
         return Assembly::Singular;
-    }
-    lu_solve_banded_multi(kzz, l, LOCAL_BANDWIDTH, &sc.perm, brhs, w);
+    };
+    sc.upper = upper;
+    lu_solve_banded_multi(kzz, l, LOCAL_BANDWIDTH, upper, &sc.perm, brhs, w);
     // K_qz [y | Y], every column summed over the unknowns in order.
     let acc = &mut sc.tmp[..w];
     for (a, &ca) in c.cols.iter().enumerate() {
@@ -1075,29 +1097,42 @@ pub(crate) fn begin_step(
 /// Lower bandwidth of the local block in the order of [`CompiledRelays::iz_theta`].
 const LOCAL_BANDWIDTH: usize = 2;
 
-/// LU factorisation with partial pivoting of the row-major `n x n` matrix `a` in place
+/// A pivot candidate replaces the diagonal in [`lu_in_place_banded`] only when the
+/// diagonal is below this fraction of it (growth of the factor entries at most
+/// `1 / PIVOT_THRESHOLD` per elimination step).
+const PIVOT_THRESHOLD: f64 = 0.1;
+
+/// LU factorisation with (threshold) partial pivoting of the row-major `n x n` matrix `a` in place
 /// (unit lower factor below the diagonal, the reciprocals of the pivots on it: the
 /// solves multiply); false when singular or not finite.
 #[inline(never)]
 pub(crate) fn lu_in_place(a: &mut [f64], n: usize, perm: &mut [usize]) -> bool {
-    lu_in_place_banded(a, n, n.saturating_sub(1), perm)
+    lu_in_place_banded(a, n, n.saturating_sub(1), perm).is_some()
 }
 
-/// Solves `A x = b` in place with the factor of [`lu_in_place`] (`tmp`: n scratch).
+/// Solves `A x = b` in place with the factor of [`lu_in_place`].
 #[inline(never)]
-pub(crate) fn lu_solve(a: &[f64], n: usize, perm: &[usize], b: &mut [f64], tmp: &mut [f64]) {
-    lu_solve_banded(a, n, n.saturating_sub(1), perm, b, tmp);
+pub(crate) fn lu_solve(a: &[f64], n: usize, perm: &[usize], b: &mut [f64]) {
+    let p = n.saturating_sub(1);
+    lu_solve_banded(a, n, p, p, perm, b);
 }
 
 /// [`lu_in_place`] for a matrix with `p` sub- and `p` super-diagonals (dense storage),
 /// LAPACK `gbtrf` style: the pivot of column `k` is searched in rows `k..=k+p`, the row
 /// interchange is applied to columns `k..` only (`perm[k]` records the row), so `L`
 /// keeps `p` sub-diagonals and `U` gets at most `2 p` super-diagonals. With `p = n - 1`
-/// it is plain LU with partial pivoting.
-pub(crate) fn lu_in_place_banded(a: &mut [f64], n: usize, p: usize, perm: &mut [usize]) -> bool {
+/// it is plain LU with partial pivoting (threshold [`PIVOT_THRESHOLD`]). Returns the upper bandwidth of `U` to give the
+/// solves: `p` when no row was interchanged (the entries beyond stay zero and are
+/// skipped), `2 p` otherwise; `None` when singular or not finite.
+pub(crate) fn lu_in_place_banded(
+    a: &mut [f64],
+    n: usize,
+    p: usize,
+    perm: &mut [usize],
+) -> Option<usize> {
+    let mut q = p;
     for k in 0..n {
         let last_row = (k + p).min(n - 1);
-        let last_col = (k + 2 * p).min(n - 1);
         let mut piv = k;
         let mut best = a[k * n + k].abs();
         for i in k + 1..=last_row {
@@ -1108,14 +1143,22 @@ pub(crate) fn lu_in_place_banded(a: &mut [f64], n: usize, p: usize, perm: &mut [
             }
         }
         if best <= 0.0 || !best.is_finite() {
-            return false;
+            return None;
+        }
+        // Threshold pivoting (as sparse LU codes do, e.g. UMFPACK's default 0.1): the
+        // diagonal stays the pivot unless another candidate is ten times larger; no
+        // interchange keeps the upper bandwidth at `p`.
+        if a[k * n + k].abs() >= PIVOT_THRESHOLD * best {
+            piv = k;
         }
         perm[k] = piv;
         if piv != k {
-            for j in k..=last_col {
+            q = 2 * p;
+            for j in k..=(k + q).min(n - 1) {
                 a.swap(k * n + j, piv * n + j);
             }
         }
+        let last_col = (k + q).min(n - 1);
         let inv = 1.0 / a[k * n + k];
         a[k * n + k] = inv;
         for i in k + 1..=last_row {
@@ -1130,17 +1173,18 @@ pub(crate) fn lu_in_place_banded(a: &mut [f64], n: usize, p: usize, perm: &mut [
             }
         }
     }
-    true
+    Some(q)
 }
 
-/// Solves `A x = b` in place with the factor of [`lu_in_place_banded`] (same `p`).
+/// Solves `A x = b` in place with the factor of [`lu_in_place_banded`] (same `p`, and
+/// the upper bandwidth `q` it returned).
 pub(crate) fn lu_solve_banded(
     a: &[f64],
     n: usize,
     p: usize,
+    q: usize,
     perm: &[usize],
     b: &mut [f64],
-    _tmp: &mut [f64],
 ) {
     for k in 0..n {
         if perm[k] != k {
@@ -1154,7 +1198,7 @@ pub(crate) fn lu_solve_banded(
         }
     }
     for i in (0..n).rev() {
-        let hi = (i + 2 * p).min(n - 1);
+        let hi = (i + q).min(n - 1);
         let row = &a[i * n + i + 1..i * n + hi + 1];
         let s: f64 = row.iter().zip(&b[i + 1..hi + 1]).map(|(u, x)| u * x).sum();
         b[i] = (b[i] - s) * a[i * n + i];
@@ -1162,12 +1206,13 @@ pub(crate) fn lu_solve_banded(
 }
 
 /// Solves `A X = B` in place for the `w` columns of the row-major `n x w` matrix `b`
-/// with the factor of [`lu_in_place_banded`] (same `p`); every column goes through
-/// the arithmetic of [`lu_solve_banded`].
+/// with the factor of [`lu_in_place_banded`] (same `p` and `q`); every column goes
+/// through the arithmetic of [`lu_solve_banded`].
 pub(crate) fn lu_solve_banded_multi(
     a: &[f64],
     n: usize,
     p: usize,
+    q: usize,
     perm: &[usize],
     b: &mut [f64],
     w: usize,
@@ -1184,14 +1229,12 @@ pub(crate) fn lu_solve_banded_multi(
         for (i, row) in (k + 1..=(k + p).min(n - 1)).zip(bottom.chunks_exact_mut(w)) {
             let f = a[i * n + k];
             for (x, u) in row.iter_mut().zip(bk) {
-                if *u != 0.0 {
-                    *x -= f * u;
-                }
+                *x -= f * u;
             }
         }
     }
     for i in (0..n).rev() {
-        let hi = (i + 2 * p).min(n - 1);
+        let hi = (i + q).min(n - 1);
         let arow = &a[i * n + i + 1..i * n + hi + 1];
         let inv = a[i * n + i];
         let (top, bottom) = b.split_at_mut((i + 1) * w);
@@ -1221,13 +1264,71 @@ mod tests {
             .collect();
         let mut a = a0;
         let mut perm = [0; 3];
-        let mut tmp = [0.0; 3];
         assert!(lu_in_place(&mut a, 3, &mut perm));
-        lu_solve(&a, 3, &perm, &mut b, &mut tmp);
+        lu_solve(&a, 3, &perm, &mut b);
         for i in 0..3 {
             assert!((b[i] - x[i]).abs() < 1e-14, "{b:?}");
         }
         let mut singular = [1.0, 2.0, 2.0, 4.0];
         assert!(!lu_in_place(&mut singular, 2, &mut [0; 2]));
+    }
+
+    /// A pentadiagonal (p = 2) system with `w` right sides, solved by the banded LU and
+    /// by nalgebra's dense LU; returns the upper bandwidth the factor reported and the
+    /// largest difference of the solutions.
+    fn banded_against_dense(a0: &[f64], n: usize, w: usize) -> (usize, f64) {
+        let b0: Vec<f64> = (0..n * w).map(|k| ((k * 7 % 11) as f64) - 5.0).collect();
+        let mut a = a0.to_vec();
+        let mut perm = vec![0; n];
+        let q = lu_in_place_banded(&mut a, n, 2, &mut perm).expect("regular");
+        let mut b = b0.clone();
+        lu_solve_banded_multi(&a, n, 2, q, &perm, &mut b, w);
+        let dense = nalgebra::DMatrix::from_row_slice(n, n, a0).lu();
+        let rhs = nalgebra::DMatrix::from_row_slice(n, w, &b0);
+        let x = dense.solve(&rhs).expect("regular");
+        let mut worst = 0.0f64;
+        for i in 0..n {
+            for c in 0..w {
+                worst = worst.max((b[i * w + c] - x[(i, c)]).abs());
+            }
+            // The single right side goes through the same arithmetic.
+            let mut one: Vec<f64> = (0..n).map(|k| b0[k * w]).collect();
+            lu_solve_banded(&a, n, 2, q, &perm, &mut one);
+            worst = worst.max((one[i] - x[(i, 0)]).abs());
+        }
+        (q, worst)
+    }
+
+    /// Pentadiagonal test matrix: diagonal `d`, off-diagonals 1, 0.5 (and -1, 0.3 below).
+    fn pentadiagonal(n: usize, d: &dyn Fn(usize) -> f64) -> Vec<f64> {
+        let mut a = vec![0.0; n * n];
+        for i in 0..n {
+            a[i * n + i] = d(i);
+            if i + 1 < n {
+                a[i * n + i + 1] = 1.0;
+                a[(i + 1) * n + i] = -1.0;
+            }
+            if i + 2 < n {
+                a[i * n + i + 2] = 0.5;
+                a[(i + 2) * n + i] = 0.3;
+            }
+        }
+        a
+    }
+
+    #[test]
+    fn banded_lu_keeps_the_diagonal_above_the_pivot_threshold_and_solves_exactly() {
+        // Diagonal 0.4 against sub-diagonal entries 1 and 0.3: above a tenth of the
+        // largest candidate, so no interchange and the upper bandwidth stays 2.
+        let a = pentadiagonal(8, &|_| 0.4);
+        let (q, err) = banded_against_dense(&a, 8, 4);
+        assert_eq!(q, 2);
+        assert!(err < 1e-12, "{err}");
+        // Diagonal 0.05 in the first row: below a tenth of the candidate 1 beneath it,
+        // so rows are interchanged and U gets four super-diagonals.
+        let a = pentadiagonal(8, &|i| if i == 0 { 0.05 } else { 4.0 });
+        let (q, err) = banded_against_dense(&a, 8, 4);
+        assert_eq!(q, 4);
+        assert!(err < 1e-12, "{err}");
     }
 }

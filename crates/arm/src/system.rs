@@ -141,9 +141,8 @@ struct Scratch {
     torque: Vec<f64>,
     /// Per pair with relay friction: its local block.
     relay: Vec<Option<RelayScratch>>,
-    /// Pivots and scratch of the joint LU (arms with relay friction).
+    /// Pivots of the joint LU (arms with relay friction).
     perm: Vec<usize>,
-    lu_tmp: Vec<f64>,
     /// The Newton matrix of the last step (factors in `kq`, `perm` and the relay
     /// scratch) may start the next step's chord iterations.
     kept: bool,
@@ -466,7 +465,6 @@ impl DrivenArm {
                 })
                 .collect(),
             perm: vec![0; n],
-            lu_tmp: vec![0.0; n],
             kept: false,
             age: 0,
             chord_rate: f64::INFINITY,
@@ -984,7 +982,7 @@ impl DrivenArm {
                 });
             }
             if self.any_friction {
-                relay::lu_solve(&sc.kq, n, &sc.perm, &mut sc.rhs, &mut sc.lu_tmp);
+                relay::lu_solve(&sc.kq, n, &sc.perm, &mut sc.rhs);
             } else {
                 cholesky_solve(&sc.kq, n, &mut sc.rhs);
             }
@@ -1333,7 +1331,6 @@ impl DrivenArm {
             prep: vec![],
             relay: vec![],
             perm: vec![],
-            lu_tmp: vec![],
             kept: false,
             age: 0,
             chord_rate: f64::INFINITY,

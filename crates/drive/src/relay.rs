@@ -56,6 +56,7 @@ impl RelayFriction {
     /// Friction torque opposing the rotation, for a pulley of `radius_m` carrying the
     /// hub load `tension_sum_n` and turning at `rate_rad_s` [N*m], with its partial
     /// derivatives with respect to the hub load and to the rate.
+    #[inline]
     pub fn torque_n_m(&self, radius_m: f64, tension_sum_n: f64, rate_rad_s: f64) -> RelayTorque {
         let x = rate_rad_s / self.slip_rate_rad_s;
         // Beyond |x| = 22, tanh rounds to +-1 (glibc returns exactly that): sliding
