@@ -151,12 +151,7 @@ impl CompiledRelays {
 
     /// Index of relay `l` of rope `side` among the local unknowns.
     pub(crate) fn iz_psi(&self, side: usize, l: usize) -> usize {
-        let m = self.relays();
-        if side == 0 {
-            m - 1 - l
-        } else {
-            m + 2 + l
-        }
+        iz_psi(self.relays(), side, l)
     }
 
     /// The non-zero entries `(index in cols, G_i[col])` of span `i`'s row of `G`.
@@ -209,6 +204,16 @@ impl CompiledRelays {
             len += 1;
         }
         (out, len)
+    }
+}
+
+/// Index of relay `l` of rope `side` among the local unknowns of a pair with `m` relays
+/// per rope (see [`CompiledRelays::iz_theta`]).
+fn iz_psi(m: usize, side: usize, l: usize) -> usize {
+    if side == 0 {
+        m - 1 - l
+    } else {
+        m + 2 + l
     }
 }
 
@@ -331,14 +336,12 @@ pub(crate) struct RelayScratch {
     pub prep: Vec<PreparedStep>,
     f: Vec<f64>,
     k: Vec<f64>,
-    kzz: Vec<f64>,
+    /// The factor of the local block `K_zz` kept from the last assembly.
+    factor: LocalFactor,
     kqz: Vec<f64>,
     /// `[r_z | K_zq]` (unknowns x (1 + cols), row-major), then after the solve
     /// `[K_zz^-1 r_z | K_zz^-1 K_zq]`.
     rhs: Vec<f64>,
-    perm: Vec<usize>,
-    /// Upper bandwidth of the factor of `kzz` ([`lu_in_place_banded`]).
-    upper: usize,
     /// Local derivatives of every span's elongation (index `side * spans + i`).
     de: Vec<([(usize, f64); 4], usize)>,
     tmp: Vec<f64>,
@@ -367,11 +370,9 @@ impl RelayScratch {
             prep: vec![prep0; s],
             f: vec![0.0; s],
             k: vec![0.0; s],
-            kzz: vec![0.0; l * l],
+            factor: LocalFactor::new(c.relays()),
             kqz: vec![0.0; nc * l],
             rhs: vec![0.0; l * (nc + 1)],
-            perm: vec![0; l],
-            upper: 2 * LOCAL_BANDWIDTH,
             de: vec![([(0, 0.0); 4], 0); s],
             tmp: vec![0.0; nc + 1],
             pinned: vec![false; l],
@@ -382,6 +383,198 @@ impl RelayScratch {
             crossed: vec![false; 2 * c.relays()],
             tri: vec![[0.0; 4]; c.relays()],
         }
+    }
+}
+
+/// The factor of a pair's local block `K_zz`, kept for the chord iterations. The block
+/// is a chain per rope (each relay row couples to its neighbours along the rope) whose
+/// first relay also couples to the two border unknowns, motor angle and tensioner
+/// stretch; each chain is eliminated from its far end towards the motor (the Thomas
+/// algorithm), the first relays into the border, and the `2 x 2` border solved. No
+/// pivoting: a relay row's diagonal is its inertia and friction slope plus the sum of
+/// the magnitudes of its neighbour entries (both spans' stiffness times `r^2`; with
+/// the friction's hub-load term when the radii are equal), so the chain is diagonally
+/// dominant and elimination keeps it so. A zero or non-finite pivot reports the block
+/// singular.
+#[derive(Debug, Clone)]
+struct LocalFactor {
+    /// Diagonal of relay row `side * m + l`, then its pivot after elimination.
+    dia: Vec<f64>,
+    /// Entry of relay row `l` at relay `l - 1` of the same rope (towards the motor).
+    sub: Vec<f64>,
+    /// Entry of relay row `l` at relay `l + 1` of the same rope (towards the joint).
+    sup: Vec<f64>,
+    /// Elimination multiplier of relay row `l` into row `l - 1`.
+    mult: Vec<f64>,
+    /// `1 / pivot` of every relay row.
+    inv: Vec<f64>,
+    /// Entries of the first relay row of each rope at `[theta, x]`.
+    edge: [[f64; 2]; 2],
+    /// Entries of the border rows `[theta, x]` at the first relay of each rope.
+    couple: [[f64; 2]; 2],
+    /// Elimination multipliers of the first relay rows into the border rows.
+    gmul: [[f64; 2]; 2],
+    /// The border block `[theta, x] x [theta, x]`, then its Schur complement.
+    border: [[f64; 2]; 2],
+    /// Inverse of the border's Schur complement.
+    binv: [[f64; 2]; 2],
+}
+
+impl LocalFactor {
+    fn new(m: usize) -> Self {
+        Self {
+            dia: vec![1.0; 2 * m],
+            sub: vec![0.0; 2 * m],
+            sup: vec![0.0; 2 * m],
+            mult: vec![0.0; 2 * m],
+            inv: vec![1.0; 2 * m],
+            edge: [[0.0; 2]; 2],
+            couple: [[0.0; 2]; 2],
+            gmul: [[0.0; 2]; 2],
+            border: [[1.0, 0.0], [0.0, 1.0]],
+            binv: [[1.0, 0.0], [0.0, 1.0]],
+        }
+    }
+
+    /// Factors the block set up in `dia`, `sub`, `sup`, `edge`, `couple` and `border`
+    /// (`m` relays per rope); false when a pivot is zero or not finite.
+    fn factor(&mut self, m: usize) -> bool {
+        let regular = |p: f64| p != 0.0 && p.is_finite();
+        for side in 0..2 {
+            let base = side * m;
+            for l in (1..m).rev() {
+                let piv = self.dia[base + l];
+                if !regular(piv) {
+                    return false;
+                }
+                self.inv[base + l] = 1.0 / piv;
+                let f = self.sup[base + l - 1] / piv;
+                self.mult[base + l] = f;
+                self.dia[base + l - 1] -= f * self.sub[base + l];
+            }
+            if m > 0 {
+                let piv = self.dia[base];
+                if !regular(piv) {
+                    return false;
+                }
+                self.inv[base] = 1.0 / piv;
+                for beta in 0..2 {
+                    let g = self.couple[beta][side] / piv;
+                    self.gmul[beta][side] = g;
+                    self.border[beta][0] -= g * self.edge[side][0];
+                    self.border[beta][1] -= g * self.edge[side][1];
+                }
+            }
+        }
+        let [[a, b], [c, d]] = self.border;
+        let det = a * d - b * c;
+        if !regular(det) {
+            return false;
+        }
+        self.binv = [[d / det, -b / det], [-c / det, a / det]];
+        true
+    }
+
+    /// Solves `K_zz X = B` in place for the `w` columns of `b` (unknowns x `w`,
+    /// row-major, rows in the order of [`CompiledRelays::iz_theta`]).
+    fn solve(&self, m: usize, b: &mut [f64], w: usize) {
+        let (it, ix) = (m, m + 1);
+        for side in 0..2 {
+            let base = side * m;
+            for l in (1..m).rev() {
+                let f = self.mult[base + l];
+                let (dst, src) = two_rows(b, w, iz_psi(m, side, l - 1), iz_psi(m, side, l));
+                for (x, y) in dst.iter_mut().zip(src) {
+                    *x -= f * y;
+                }
+            }
+            if m > 0 {
+                let first = iz_psi(m, side, 0);
+                for (border, row) in [it, ix].into_iter().enumerate() {
+                    let f = self.gmul[border][side];
+                    let (dst, src) = two_rows(b, w, row, first);
+                    for (x, y) in dst.iter_mut().zip(src) {
+                        *x -= f * y;
+                    }
+                }
+            }
+        }
+        let [[p, q], [r, s]] = self.binv;
+        {
+            let (bt, bx) = b[it * w..(ix + 1) * w].split_at_mut(w);
+            for (u, v) in bt.iter_mut().zip(bx.iter_mut()) {
+                (*u, *v) = (p * *u + q * *v, r * *u + s * *v);
+            }
+        }
+        if m == 0 {
+            return;
+        }
+        for side in 0..2 {
+            let base = side * m;
+            let [et, ex] = self.edge[side];
+            let inv = self.inv[base];
+            let first = iz_psi(m, side, 0);
+            // The border rows follow each other (`it`, `ix`), next to both first relays.
+            let (row, border) = two_rows(b, w, first, it);
+            let (bt, bx) = (&border[..w], &border[w..2 * w]);
+            for ((v, t), x) in row.iter_mut().zip(bt).zip(bx) {
+                *v = (*v - et * t - ex * x) * inv;
+            }
+            for l in 1..m {
+                let (sub, inv) = (self.sub[base + l], self.inv[base + l]);
+                let (row, prev) = two_rows(b, w, iz_psi(m, side, l), iz_psi(m, side, l - 1));
+                for (x, y) in row.iter_mut().zip(prev) {
+                    *x = (*x - sub * y) * inv;
+                }
+            }
+        }
+    }
+}
+
+impl LocalFactor {
+    /// [`Self::solve`] for one right side (the chord iterations), same arithmetic.
+    fn solve_one(&self, m: usize, b: &mut [f64]) {
+        let (it, ix) = (m, m + 1);
+        for side in 0..2 {
+            let base = side * m;
+            for l in (1..m).rev() {
+                b[iz_psi(m, side, l - 1)] -= self.mult[base + l] * b[iz_psi(m, side, l)];
+            }
+            if m > 0 {
+                let first = b[iz_psi(m, side, 0)];
+                b[it] -= self.gmul[0][side] * first;
+                b[ix] -= self.gmul[1][side] * first;
+            }
+        }
+        let [[p, q], [r, s]] = self.binv;
+        let (u, v) = (b[it], b[ix]);
+        (b[it], b[ix]) = (p * u + q * v, r * u + s * v);
+        if m == 0 {
+            return;
+        }
+        for side in 0..2 {
+            let base = side * m;
+            let [et, ex] = self.edge[side];
+            let first = iz_psi(m, side, 0);
+            b[first] = (b[first] - et * b[it] - ex * b[ix]) * self.inv[base];
+            for l in 1..m {
+                let prev = b[iz_psi(m, side, l - 1)];
+                let row = iz_psi(m, side, l);
+                b[row] = (b[row] - self.sub[base + l] * prev) * self.inv[base + l];
+            }
+        }
+    }
+}
+
+/// Row `dst` (mutable) and the rows from `src` on (`w` entries each, row-major `b`),
+/// `dst != src`.
+fn two_rows(b: &mut [f64], w: usize, dst: usize, src: usize) -> (&mut [f64], &[f64]) {
+    if dst < src {
+        let (lo, hi) = b.split_at_mut(src * w);
+        (&mut lo[dst * w..(dst + 1) * w], hi)
+    } else {
+        let (lo, hi) = b.split_at_mut(dst * w);
+        (&mut hi[..w], &lo[src * w..])
     }
 }
 
@@ -578,7 +771,7 @@ pub(crate) fn assemble_residual(
             }
         }
     }
-    lu_solve_banded(&sc.kzz, l, LOCAL_BANDWIDTH, sc.upper, &sc.perm, y);
+    sc.factor.solve_one(m, y);
     for (z, &v) in y.iter().enumerate() {
         sc.rhs[z * w] = v;
     }
@@ -616,82 +809,106 @@ pub(crate) fn assemble(
         return Assembly::Retry;
     }
     let w = nc + 1;
-    sc.kzz.fill(0.0);
-    sc.rhs.fill(0.0);
-    sc.kqz.fill(0.0);
     let motor_free = matches!(inp.motor, MotorRow::Servo { .. });
     let x_free = inp.constant_force_n.is_some();
+    sc.rhs.fill(0.0);
+    sc.kqz.fill(0.0);
     for side in 0..2 {
         for i in 0..ns {
             sc.de[side * ns + i] = c.span_local_derivative(side, i, rm, motor_free, x_free);
         }
     }
-    let (kzz, brhs, kqz) = (&mut sc.kzz, &mut sc.rhs, &mut sc.kqz);
-    let (fs, ks, des) = (&sc.f, &sc.k, &sc.de);
-    // Adds `wt * k_s * d e_s` to row `row` of the local block (`K_zz` and `K_zq`); the
-    // zero entries of `G` are left out (they would add zeros).
-    let add_row =
-        |kzz: &mut [f64], brhs: &mut [f64], row: usize, wt: f64, side: usize, i: usize| {
-            let k = ks[side * ns + i];
-            if k == 0.0 || wt == 0.0 {
-                return;
-            }
-            let sg = if side == 0 { 1.0 } else { -1.0 };
-            let (d, len) = &des[side * ns + i];
-            let kr = &mut kzz[row * l..(row + 1) * l];
-            for &(z, v) in &d[..*len] {
-                kr[z] += wt * k * v;
-            }
-            let br = &mut brhs[row * w + 1..(row + 1) * w];
-            for &(cc, g) in c.span_geometry(i) {
-                br[cc] -= wt * k * sg * g;
-            }
-        };
-    // Motor row.
-    let it = c.iz_theta();
-    match inp.motor {
-        MotorRow::Fixed => {
-            kzz[it * l + it] = 1.0;
+    let (fs, ks) = (&sc.f, &sc.k);
+    let brhs = &mut sc.rhs;
+    let fa = &mut sc.factor;
+    // Adds `-wt k_s sg G_s` (the derivative of `wt f_s` with respect to the joints) to
+    // the `K_zq` part of row `row` (the zero entries of `G` left out).
+    let add_kzq = |brhs: &mut [f64], row: usize, wt: f64, side: usize, i: usize| {
+        let k = ks[side * ns + i];
+        let sg = if side == 0 { 1.0 } else { -1.0 };
+        let br = &mut brhs[row * w + 1..(row + 1) * w];
+        for &(cc, g) in c.span_geometry(i) {
+            br[cc] -= wt * k * sg * g;
         }
-        MotorRow::Servo { residual_n_m, diag } => {
-            brhs[it * w] = residual_n_m + n * rm * (fs[0] - fs[ns]);
-            kzz[it * l + it] += diag;
-            add_row(kzz, brhs, it, n * rm, 0, 0);
-            add_row(kzz, brhs, it, -n * rm, 1, 0);
+    };
+    let (it, ix) = (c.iz_theta(), c.iz_x());
+    let (kp, km) = (ks[0], ks[ns]);
+    let r0 = c.radius_m.first().copied().unwrap_or(0.0);
+    // Border rows (motor, tensioner): their 2 x 2 block and their entries at the
+    // relays next to the motor (`psi+_0`, `psi-_0`); a held unknown has an identity row.
+    fa.border = [[1.0, 0.0], [0.0, 1.0]];
+    fa.couple = [[0.0; 2]; 2];
+    if let MotorRow::Servo { residual_n_m, diag } = inp.motor {
+        brhs[it * w] = residual_n_m + n * rm * (fs[0] - fs[ns]);
+        fa.border[0][0] = diag + n * rm * rm * (kp + km);
+        if x_free {
+            fa.border[0][1] = n * rm * (kp - km);
         }
+        fa.couple[0] = [n * rm * kp * r0, -n * rm * km * r0];
+        add_kzq(brhs, it, n * rm, 0, 0);
+        add_kzq(brhs, it, -n * rm, 1, 0);
     }
-    // Tensioner row.
-    let ix = c.iz_x();
-    match inp.constant_force_n {
-        None => kzz[ix * l + ix] = 1.0,
-        Some(t) => {
-            brhs[ix * w] = fs[0] + fs[ns] - 2.0 * t;
-            add_row(kzz, brhs, ix, 1.0, 0, 0);
-            add_row(kzz, brhs, ix, 1.0, 1, 0);
+    if let Some(t) = inp.constant_force_n {
+        brhs[ix * w] = fs[0] + fs[ns] - 2.0 * t;
+        fa.border[1][1] = kp + km;
+        if motor_free {
+            fa.border[1][0] = rm * (kp - km);
         }
+        fa.couple[1] = [kp * r0, km * r0];
+        add_kzq(brhs, ix, 1.0, 0, 0);
+        add_kzq(brhs, ix, 1.0, 1, 0);
     }
-    // Relay rows.
+    // Relay rows: a chain per rope (relay `l` shares span `l + 1` with relay `l + 1`).
     let (two_h, four_h2) = (2.0 / h, 4.0 / (h * h));
     let jr = c.friction.inertia_kg_m2;
     for side in 0..2 {
+        let sg = if side == 0 { 1.0 } else { -1.0 };
         for rl in 0..m {
             let row = c.iz_psi(side, rl);
+            let k = side * m + rl;
             let r = c.radius_m[rl];
             let (res, t) = relay_residual(c, inp, &sc.psi1, fs, side, rl);
-            brhs[row * w] = res;
-            kzz[row * l + row] += four_h2 * jr + two_h * t.d_rate_n_m_s;
-            add_row(kzz, brhs, row, r + t.d_tension_sum_m, side, rl);
-            add_row(kzz, brhs, row, -r + t.d_tension_sum_m, side, rl + 1);
-            sc.pinned[row] = kzz[row * l + row] == 0.0;
+            let ts = t.d_tension_sum_m;
+            // `(r + ts) f_l + (-r + ts) f_{l+1}`: the weights of the two spans.
+            let (wa, wb) = (r + ts, -r + ts);
+            let (ka, kb) = (ks[side * ns + rl], ks[side * ns + rl + 1]);
+            let diag = four_h2 * jr + two_h * t.d_rate_n_m_s + wa * ka * r - wb * kb * r;
+            sc.pinned[row] = diag == 0.0;
             if sc.pinned[row] {
                 // No inertia, no friction and both spans slack: the pulley stays put.
-                kzz[row * l + row] = 1.0;
-                brhs[row * w] = 0.0;
+                fa.dia[k] = 1.0;
+                fa.sub[k] = 0.0;
+                fa.sup[k] = 0.0;
+                if rl == 0 {
+                    fa.edge[side] = [0.0; 2];
+                }
+                continue;
             }
+            brhs[row * w] = res;
+            fa.dia[k] = diag;
+            fa.sub[k] = if rl > 0 {
+                -wa * ka * c.radius_m[rl - 1]
+            } else {
+                0.0
+            };
+            fa.sup[k] = if rl + 1 < m {
+                wb * kb * c.radius_m[rl + 1]
+            } else {
+                0.0
+            };
+            if rl == 0 {
+                fa.edge[side] = [
+                    if motor_free { wa * ka * sg * rm } else { 0.0 },
+                    if x_free { wa * ka } else { 0.0 },
+                ];
+            }
+            add_kzq(brhs, row, wa, side, rl);
+            add_kzq(brhs, row, wb, side, rl + 1);
         }
     }
     // Joint rows: rhs = -r_q gets the rope torques, kq the span stiffnesses (the zero
     // entries of `G` left out).
+    let (des, kqz) = (&sc.de, &mut sc.kqz);
     for side in 0..2 {
         let sg = if side == 0 { 1.0 } else { -1.0 };
         for i in 0..ns {
@@ -714,11 +931,10 @@ pub(crate) fn assemble(
             }
         }
     }
-    let Some(upper) = lu_in_place_banded(kzz, l, LOCAL_BANDWIDTH, &mut sc.perm) else {
+    if !fa.factor(m) {
         return Assembly::Singular;
-    };
-    sc.upper = upper;
-    lu_solve_banded_multi(kzz, l, LOCAL_BANDWIDTH, upper, &sc.perm, brhs, w);
+    }
+    fa.solve(m, brhs, w);
     // K_qz [y | Y], every column summed over the unknowns in order.
     let acc = &mut sc.tmp[..w];
     for (a, &ca) in c.cols.iter().enumerate() {
@@ -1094,48 +1310,21 @@ pub(crate) fn begin_step(
     }
 }
 
-/// Lower bandwidth of the local block in the order of [`CompiledRelays::iz_theta`].
-const LOCAL_BANDWIDTH: usize = 2;
-
-/// A pivot candidate replaces the diagonal in [`lu_in_place_banded`] only when the
-/// diagonal is below this fraction of it (growth of the factor entries at most
-/// `1 / PIVOT_THRESHOLD` per elimination step).
+/// A pivot candidate replaces the diagonal in [`lu_in_place`] only when the diagonal is
+/// below this fraction of it (threshold partial pivoting, as sparse LU codes do, e.g.
+/// UMFPACK's default 0.1: the factor entries grow at most tenfold per step, and an arm's
+/// Newton matrix, mass matrix plus rope stiffness, keeps its order).
 const PIVOT_THRESHOLD: f64 = 0.1;
 
-/// LU factorisation with (threshold) partial pivoting of the row-major `n x n` matrix `a` in place
-/// (unit lower factor below the diagonal, the reciprocals of the pivots on it: the
-/// solves multiply); false when singular or not finite.
+/// LU factorisation with threshold partial pivoting of the row-major `n x n` matrix `a`
+/// in place (unit lower factor below the diagonal, the reciprocals of the pivots on it:
+/// the solves multiply); false when singular or not finite.
 #[inline(never)]
 pub(crate) fn lu_in_place(a: &mut [f64], n: usize, perm: &mut [usize]) -> bool {
-    lu_in_place_banded(a, n, n.saturating_sub(1), perm).is_some()
-}
-
-/// Solves `A x = b` in place with the factor of [`lu_in_place`].
-#[inline(never)]
-pub(crate) fn lu_solve(a: &[f64], n: usize, perm: &[usize], b: &mut [f64]) {
-    let p = n.saturating_sub(1);
-    lu_solve_banded(a, n, p, p, perm, b);
-}
-
-/// [`lu_in_place`] for a matrix with `p` sub- and `p` super-diagonals (dense storage),
-/// LAPACK `gbtrf` style: the pivot of column `k` is searched in rows `k..=k+p`, the row
-/// interchange is applied to columns `k..` only (`perm[k]` records the row), so `L`
-/// keeps `p` sub-diagonals and `U` gets at most `2 p` super-diagonals. With `p = n - 1`
-/// it is plain LU with partial pivoting (threshold [`PIVOT_THRESHOLD`]). Returns the upper bandwidth of `U` to give the
-/// solves: `p` when no row was interchanged (the entries beyond stay zero and are
-/// skipped), `2 p` otherwise; `None` when singular or not finite.
-pub(crate) fn lu_in_place_banded(
-    a: &mut [f64],
-    n: usize,
-    p: usize,
-    perm: &mut [usize],
-) -> Option<usize> {
-    let mut q = p;
     for k in 0..n {
-        let last_row = (k + p).min(n - 1);
         let mut piv = k;
         let mut best = a[k * n + k].abs();
-        for i in k + 1..=last_row {
+        for i in k + 1..n {
             let v = a[i * n + k].abs();
             if v > best {
                 best = v;
@@ -1143,110 +1332,57 @@ pub(crate) fn lu_in_place_banded(
             }
         }
         if best <= 0.0 || !best.is_finite() {
-            return None;
+            return false;
         }
-        // Threshold pivoting (as sparse LU codes do, e.g. UMFPACK's default 0.1): the
-        // diagonal stays the pivot unless another candidate is ten times larger; no
-        // interchange keeps the upper bandwidth at `p`.
         if a[k * n + k].abs() >= PIVOT_THRESHOLD * best {
             piv = k;
         }
         perm[k] = piv;
         if piv != k {
-            q = 2 * p;
-            for j in k..=(k + q).min(n - 1) {
+            // Columns `k..` only (LAPACK `gbtrf` style): the multipliers already stored
+            // stay with the elimination step that made them, as `lu_solve` replays them.
+            for j in k..n {
                 a.swap(k * n + j, piv * n + j);
             }
         }
-        let last_col = (k + q).min(n - 1);
         let inv = 1.0 / a[k * n + k];
         a[k * n + k] = inv;
-        for i in k + 1..=last_row {
+        for i in k + 1..n {
             let f = a[i * n + k] * inv;
             a[i * n + k] = f;
             if f != 0.0 {
                 let (top, bottom) = a.split_at_mut(i * n);
-                let pivot_row = &top[k * n + k + 1..k * n + last_col + 1];
-                for (x, u) in bottom[k + 1..last_col + 1].iter_mut().zip(pivot_row) {
+                let pivot_row = &top[k * n + k + 1..(k + 1) * n];
+                for (x, u) in bottom[k + 1..n].iter_mut().zip(pivot_row) {
                     *x -= f * u;
                 }
             }
         }
     }
-    Some(q)
+    true
 }
 
-/// Solves `A x = b` in place with the factor of [`lu_in_place_banded`] (same `p`, and
-/// the upper bandwidth `q` it returned).
-pub(crate) fn lu_solve_banded(
-    a: &[f64],
-    n: usize,
-    p: usize,
-    q: usize,
-    perm: &[usize],
-    b: &mut [f64],
-) {
+/// Solves `A x = b` in place with the factor of [`lu_in_place`].
+#[inline(never)]
+pub(crate) fn lu_solve(a: &[f64], n: usize, perm: &[usize], b: &mut [f64]) {
     for k in 0..n {
         if perm[k] != k {
             b.swap(k, perm[k]);
         }
         let bk = b[k];
         if bk != 0.0 {
-            for i in k + 1..=(k + p).min(n - 1) {
+            for i in k + 1..n {
                 b[i] -= a[i * n + k] * bk;
             }
         }
     }
     for i in (0..n).rev() {
-        let hi = (i + q).min(n - 1);
-        let row = &a[i * n + i + 1..i * n + hi + 1];
-        let s: f64 = row.iter().zip(&b[i + 1..hi + 1]).map(|(u, x)| u * x).sum();
+        let s: f64 = a[i * n + i + 1..(i + 1) * n]
+            .iter()
+            .zip(&b[i + 1..n])
+            .map(|(u, x)| u * x)
+            .sum();
         b[i] = (b[i] - s) * a[i * n + i];
-    }
-}
-
-/// Solves `A X = B` in place for the `w` columns of the row-major `n x w` matrix `b`
-/// with the factor of [`lu_in_place_banded`] (same `p` and `q`); every column goes
-/// through the arithmetic of [`lu_solve_banded`].
-pub(crate) fn lu_solve_banded_multi(
-    a: &[f64],
-    n: usize,
-    p: usize,
-    q: usize,
-    perm: &[usize],
-    b: &mut [f64],
-    w: usize,
-) {
-    for k in 0..n {
-        let pk = perm[k];
-        if pk != k {
-            for c in 0..w {
-                b.swap(k * w + c, pk * w + c);
-            }
-        }
-        let (top, bottom) = b.split_at_mut((k + 1) * w);
-        let bk = &top[k * w..];
-        for (i, row) in (k + 1..=(k + p).min(n - 1)).zip(bottom.chunks_exact_mut(w)) {
-            let f = a[i * n + k];
-            for (x, u) in row.iter_mut().zip(bk) {
-                *x -= f * u;
-            }
-        }
-    }
-    for i in (0..n).rev() {
-        let hi = (i + q).min(n - 1);
-        let arow = &a[i * n + i + 1..i * n + hi + 1];
-        let inv = a[i * n + i];
-        let (top, bottom) = b.split_at_mut((i + 1) * w);
-        let bi = &mut top[i * w..];
-        for (c, x) in bi.iter_mut().enumerate() {
-            let s: f64 = arow
-                .iter()
-                .zip(bottom.chunks_exact(w))
-                .map(|(u, row)| u * row[c])
-                .sum();
-            *x = (*x - s) * inv;
-        }
     }
 }
 
@@ -1273,62 +1409,119 @@ mod tests {
         assert!(!lu_in_place(&mut singular, 2, &mut [0; 2]));
     }
 
-    /// A pentadiagonal (p = 2) system with `w` right sides, solved by the banded LU and
-    /// by nalgebra's dense LU; returns the upper bandwidth the factor reported and the
-    /// largest difference of the solutions.
-    fn banded_against_dense(a0: &[f64], n: usize, w: usize) -> (usize, f64) {
-        let b0: Vec<f64> = (0..n * w).map(|k| ((k * 7 % 11) as f64) - 5.0).collect();
+    /// `A x = b` solved by [`lu_in_place`] and by nalgebra's dense LU: the pivot rows
+    /// and the largest difference of the solutions.
+    fn against_nalgebra(a0: &[f64], n: usize) -> (Vec<usize>, f64) {
+        let b0: Vec<f64> = (0..n).map(|k| ((k * 7 % 11) as f64) - 5.0).collect();
         let mut a = a0.to_vec();
         let mut perm = vec![0; n];
-        let q = lu_in_place_banded(&mut a, n, 2, &mut perm).expect("regular");
+        assert!(lu_in_place(&mut a, n, &mut perm));
         let mut b = b0.clone();
-        lu_solve_banded_multi(&a, n, 2, q, &perm, &mut b, w);
-        let dense = nalgebra::DMatrix::from_row_slice(n, n, a0).lu();
-        let rhs = nalgebra::DMatrix::from_row_slice(n, w, &b0);
-        let x = dense.solve(&rhs).expect("regular");
-        let mut worst = 0.0f64;
-        for i in 0..n {
-            for c in 0..w {
-                worst = worst.max((b[i * w + c] - x[(i, c)]).abs());
-            }
-            // The single right side goes through the same arithmetic.
-            let mut one: Vec<f64> = (0..n).map(|k| b0[k * w]).collect();
-            lu_solve_banded(&a, n, 2, q, &perm, &mut one);
-            worst = worst.max((one[i] - x[(i, 0)]).abs());
-        }
-        (q, worst)
+        lu_solve(&a, n, &perm, &mut b);
+        let x = nalgebra::DMatrix::from_row_slice(n, n, a0)
+            .lu()
+            .solve(&nalgebra::DVector::from_vec(b0))
+            .expect("regular");
+        let worst = (0..n).map(|i| (b[i] - x[i]).abs()).fold(0.0, f64::max);
+        (perm, worst)
     }
 
-    /// Pentadiagonal test matrix: diagonal `d`, off-diagonals 1, 0.5 (and -1, 0.3 below).
-    fn pentadiagonal(n: usize, d: &dyn Fn(usize) -> f64) -> Vec<f64> {
+    /// Test matrix: diagonal `d(i)`, every other entry `1 / (1 + |i - j|)`, negative
+    /// below the diagonal.
+    fn test_matrix(n: usize, d: &dyn Fn(usize) -> f64) -> Vec<f64> {
         let mut a = vec![0.0; n * n];
         for i in 0..n {
-            a[i * n + i] = d(i);
-            if i + 1 < n {
-                a[i * n + i + 1] = 1.0;
-                a[(i + 1) * n + i] = -1.0;
-            }
-            if i + 2 < n {
-                a[i * n + i + 2] = 0.5;
-                a[(i + 2) * n + i] = 0.3;
+            for j in 0..n {
+                let v = 1.0 / (1.0 + i.abs_diff(j) as f64);
+                a[i * n + j] = if i == j {
+                    d(i)
+                } else if i > j {
+                    -v
+                } else {
+                    v
+                };
             }
         }
         a
     }
 
     #[test]
-    fn banded_lu_keeps_the_diagonal_above_the_pivot_threshold_and_solves_exactly() {
-        // Diagonal 0.4 against sub-diagonal entries 1 and 0.3: above a tenth of the
-        // largest candidate, so no interchange and the upper bandwidth stays 2.
-        let a = pentadiagonal(8, &|_| 0.4);
-        let (q, err) = banded_against_dense(&a, 8, 4);
-        assert_eq!(q, 2);
+    fn local_factor_solves_the_chains_and_border_as_a_dense_lu_does() {
+        // Three relays per rope, both border unknowns free: fill the factor's entries,
+        // build the same dense block in the order of `iz_psi`, and compare the solves
+        // of two right sides.
+        let m = 3;
+        let l = 2 * m + 2;
+        let mut fa = LocalFactor::new(m);
+        let mut dense = vec![0.0; l * l];
+        for side in 0..2 {
+            for rl in 0..m {
+                let k = side * m + rl;
+                let row = iz_psi(m, side, rl);
+                fa.dia[k] = 5.0 + k as f64;
+                dense[row * l + row] = fa.dia[k];
+                if rl > 0 {
+                    fa.sub[k] = -1.0 - 0.1 * k as f64;
+                    dense[row * l + iz_psi(m, side, rl - 1)] = fa.sub[k];
+                }
+                if rl + 1 < m {
+                    fa.sup[k] = 1.5 - 0.2 * k as f64;
+                    dense[row * l + iz_psi(m, side, rl + 1)] = fa.sup[k];
+                }
+            }
+            let first = iz_psi(m, side, 0);
+            fa.edge[side] = [0.7 - side as f64, 0.3];
+            fa.couple[0][side] = -0.4 + side as f64;
+            fa.couple[1][side] = 0.9;
+            for border in 0..2 {
+                dense[first * l + m + border] = fa.edge[side][border];
+                dense[(m + border) * l + first] = fa.couple[border][side];
+            }
+        }
+        fa.border = [[6.0, 0.5], [-0.8, 4.0]];
+        for (i, row) in fa.border.iter().enumerate() {
+            for (j, v) in row.iter().enumerate() {
+                dense[(m + i) * l + m + j] = *v;
+            }
+        }
+        assert!(fa.factor(m));
+        let w = 2;
+        let b0: Vec<f64> = (0..l * w).map(|k| ((k * 5 % 7) as f64) - 3.0).collect();
+        let mut b = b0.clone();
+        fa.solve(m, &mut b, w);
+        let x = nalgebra::DMatrix::from_row_slice(l, l, &dense)
+            .lu()
+            .solve(&nalgebra::DMatrix::from_row_slice(l, w, &b0))
+            .expect("regular");
+        for i in 0..l {
+            for c in 0..w {
+                assert!((b[i * w + c] - x[(i, c)]).abs() < 1e-13, "row {i}: {b:?}");
+            }
+        }
+        // One right side: the chord iterations' solve gives the first column bitwise.
+        let mut one: Vec<f64> = (0..l).map(|i| b0[i * w]).collect();
+        fa.solve_one(m, &mut one);
+        for i in 0..l {
+            assert_eq!(one[i].to_bits(), b[i * w].to_bits(), "row {i}");
+        }
+        // A zero pivot is reported, not divided by.
+        let mut zero = LocalFactor::new(m);
+        zero.dia[m + 1] = 0.0;
+        assert!(!zero.factor(m));
+    }
+
+    #[test]
+    fn lu_keeps_the_diagonal_above_the_pivot_threshold_and_solves_exactly() {
+        // Diagonal 0.4 against entries up to 0.5 below it: above a tenth of the largest
+        // candidate, so no row is interchanged.
+        let (perm, err) = against_nalgebra(&test_matrix(7, &|_| 0.4), 7);
+        assert_eq!(perm, (0..7).collect::<Vec<_>>());
         assert!(err < 1e-12, "{err}");
-        // Diagonal 0.05 in the first row: below a tenth of the candidate 1 beneath it,
-        // so rows are interchanged and U gets four super-diagonals.
-        let a = pentadiagonal(8, &|i| if i == 0 { 0.05 } else { 4.0 });
-        let (q, err) = banded_against_dense(&a, 8, 4);
-        assert_eq!(q, 4);
+        // Zero diagonal (a skew-symmetric matrix of even order, regular): every column
+        // needs an interchange, and the solve must replay them in order.
+        let (perm, err) = against_nalgebra(&test_matrix(6, &|_| 0.0), 6);
+        let interchanges = perm.iter().enumerate().filter(|(k, &p)| p != *k).count();
+        assert!(interchanges >= 2, "{perm:?}");
         assert!(err < 1e-12, "{err}");
     }
 }
