@@ -37,9 +37,10 @@
 //!
 //! The relay angles join the motor angle and the tensioner stretch as the local
 //! unknowns `z = [theta, x, psi+_0.., psi-_0..]` of the pair in the implicit step
-//! (trapezoidal rule, exact-hold ropes per span). Friction makes the local block
-//! non-symmetric, so it is eliminated by a small LU (partial pivoting) and the
-//! `n x n` joint matrix of an arm with friction is solved by LU instead of Cholesky.
+//! (trapezoidal rule, exact-hold ropes per span). The local block is a chain per rope
+//! bordered by the motor and tensioner rows; it is eliminated along that structure
+//! ([`LocalFactor`]). Friction makes it non-symmetric, so the `n x n` joint matrix of
+//! an arm with friction is solved by LU (threshold pivoting) instead of Cholesky.
 
 use longreach_drive::{RelayFriction, RelayTorque};
 use longreach_rope::{PreparedStep, RopeState, RopeStepper};
@@ -137,9 +138,9 @@ impl CompiledRelays {
         2 + 2 * self.relays()
     }
 
-    /// Index of the motor angle among the local unknowns. The order
-    /// `[psi+_{m-1} .. psi+_0, theta, x, psi-_0 .. psi-_{m-1}]` makes the local block
-    /// banded (two sub- and super-diagonals).
+    /// Index of the motor angle among the local unknowns, in the order
+    /// `[psi+_{m-1} .. psi+_0, theta, x, psi-_0 .. psi-_{m-1}]` (each rope's relays
+    /// from the joint end towards the border rows, as [`LocalFactor`] eliminates them).
     pub(crate) fn iz_theta(&self) -> usize {
         self.relays()
     }
