@@ -8,6 +8,7 @@ mod driven;
 mod dynamics;
 mod multibody;
 mod payload;
+mod rapier_cross_check;
 mod relay_friction;
 mod rig_equivalence;
 mod scenario_parse;
