@@ -108,6 +108,31 @@ pub fn servo(inertia: f64, kp: f64, kd: f64) -> MotorSpec {
     }
 }
 
+/// A trapezoidal move to `to_rad` from `start_s` at `max_velocity_rad_s`,
+/// `max_accel_rad_s2`.
+pub fn trapezoid(
+    to_rad: f64,
+    start_s: f64,
+    max_velocity_rad_s: f64,
+    max_accel_rad_s2: f64,
+) -> Command {
+    Command::Trapezoid {
+        to_rad,
+        start_s,
+        max_velocity_rad_s,
+        max_accel_rad_s2,
+    }
+}
+
+/// A kinematic motor (its angle is the reference).
+pub fn kinematic() -> MotorSpec {
+    MotorSpec {
+        inertia_kg_m2: 0.0,
+        damping_n_m_s: 0.0,
+        mode: MotorMode::Kinematic,
+    }
+}
+
 /// arm5 (the MuJoCo anchor) with elastic stainless ropes, r = 25 mm, servo motors.
 pub fn arm5_driven(motor: MotorSpec, commands: Vec<Command>) -> DrivenArm {
     let spec = load_urdf(robot_path("arm5/arm5.urdf")).unwrap();

@@ -104,18 +104,9 @@ fn coupling_distal_tensions_change_as_routing_predicts() {
     // at joint 1 (MuJoCo anchor: tendon coefficient -0.025 on q1 .. q_p), so its
     // stretch changes by -0.025 (dq1 + .. + dq_p) and, with elastic ropes, its tension
     // by k1/L_p times that. The coefficients below are the anchor's, not ours.
-    let motor = MotorSpec {
-        inertia_kg_m2: 0.0,
-        damping_n_m_s: 0.0,
-        mode: MotorMode::Kinematic,
-    };
+    let motor = kinematic();
     let mut cmds = vec![Command::Hold; 5];
-    cmds[0] = Command::Trapezoid {
-        to_rad: 0.2,
-        start_s: 0.1,
-        max_velocity_rad_s: 0.2,
-        max_accel_rad_s2: 0.5,
-    };
+    cmds[0] = trapezoid(0.2, 0.1, 0.2, 0.5);
     let mut arm = arm5_driven(motor, cmds);
     arm.set_gravity(Vector3::zeros());
     arm.compensate_routing = false;

@@ -3,31 +3,17 @@
 //! rapier's multibody step (semi-implicit Euler on rapier's articulated dynamics) with
 //! the same ropes applied as explicit joint torques `R^T f`, recomputed every substep.
 
-use crate::common::arm5_driven;
+use crate::common::{arm5_driven, kinematic, trapezoid};
 
-use longreach_arm::{step, ArmModel, Command, DrivenArm, DrivenState, MotorMode, MotorSpec};
+use longreach_arm::{step, ArmModel, Command, DrivenArm, DrivenState};
 
 /// arm5 (5 links x 2 m, 10 kg each, elastic stainless ropes over every proximal
 /// joint, gravity on) with kinematic motors: joints 2 and 5 make trapezoidal moves.
 fn moving_arm5() -> DrivenArm {
-    let motor = MotorSpec {
-        inertia_kg_m2: 0.0,
-        damping_n_m_s: 0.0,
-        mode: MotorMode::Kinematic,
-    };
+    let motor = kinematic();
     let mut cmds = vec![Command::Hold; 5];
-    cmds[1] = Command::Trapezoid {
-        to_rad: 0.1,
-        start_s: 0.05,
-        max_velocity_rad_s: 0.4,
-        max_accel_rad_s2: 4.0,
-    };
-    cmds[4] = Command::Trapezoid {
-        to_rad: -0.15,
-        start_s: 0.0,
-        max_velocity_rad_s: 0.6,
-        max_accel_rad_s2: 6.0,
-    };
+    cmds[1] = trapezoid(0.1, 0.05, 0.4, 4.0);
+    cmds[4] = trapezoid(-0.15, 0.0, 0.6, 6.0);
     arm5_driven(motor, cmds)
 }
 

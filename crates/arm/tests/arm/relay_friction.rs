@@ -5,9 +5,9 @@ use crate::common;
 
 use std::path::Path;
 
-use common::robot_path;
+use common::{kinematic, robot_path};
 use longreach_arm::scenario::parse;
-use longreach_arm::transmission::{uniform_pairs, MotorMode, MotorSpec, TensionerKind};
+use longreach_arm::transmission::{uniform_pairs, TensionerKind};
 use longreach_arm::{load_urdf, Command, DrivenArm, DrivenState};
 use longreach_drive::RelayFriction;
 use longreach_rope::{Catalog, LawKind, RopeLaw};
@@ -244,11 +244,7 @@ fn arm5_friction(friction: Option<RelayFriction>) -> DrivenArm {
     let spec = load_urdf(robot_path("arm5/arm5.urdf")).unwrap();
     let params = Catalog::builtin().get("stainless1").unwrap().clone();
     let law = RopeLaw::from_params(&params, LawKind::Elastic).unwrap();
-    let motor = MotorSpec {
-        inertia_kg_m2: 0.0,
-        damping_n_m_s: 0.0,
-        mode: MotorMode::Kinematic,
-    };
+    let motor = kinematic();
     let mut pairs = uniform_pairs(
         &spec,
         "stainless1",

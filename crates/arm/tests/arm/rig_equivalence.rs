@@ -4,8 +4,8 @@
 
 use crate::common;
 
-use common::robot_path;
-use longreach_arm::transmission::{MotorMode, MotorSpec, PairSpec, TensionerKind};
+use common::{kinematic, robot_path};
+use longreach_arm::transmission::{PairSpec, TensionerKind};
 use longreach_arm::{load_urdf, Command, DrivenArm};
 use longreach_drive::sweep::{frequency_response, run};
 use longreach_drive::{InputSignal, RigModel, RigSpec, RigTrace, SteppedSine};
@@ -45,11 +45,7 @@ fn compare(rope: &str, kind: LawKind, mean_tension_n: f64) {
         preload_n: mean_tension_n,
         prestretch_n: 490.0,
         tensioner: TensionerKind::ConstantForce,
-        motor: MotorSpec {
-            inertia_kg_m2: 0.0,
-            damping_n_m_s: 0.0,
-            mode: MotorMode::Kinematic,
-        },
+        motor: kinematic(),
         effects: vec![],
         relay_friction: None,
     };
