@@ -530,9 +530,7 @@ impl LocalFactor {
             }
         }
     }
-}
 
-impl LocalFactor {
     /// [`Self::solve`] for one right side (the chord iterations), same arithmetic.
     fn solve_one(&self, m: usize, b: &mut [f64]) {
         let (it, ix) = (m, m + 1);
