@@ -720,6 +720,53 @@ fn relay_residual(
     )
 }
 
+/// Derivatives of the equation of relay `rl` (friction torque `t`, stiffnesses `ka`,
+/// `kb` of its spans `rl` and `rl + 1`, step `h`) with respect to the relay angles of
+/// its rope: the rope chain's row, which [`assemble`], [`relax_relays`] and
+/// [`solve_crossed_relays`] all use.
+#[derive(Debug, Clone, Copy)]
+struct RelaySlopes {
+    /// `(r + ts, -r + ts)`: the equation is `... + wa f_l + wb f_{l+1}`.
+    wa: f64,
+    wb: f64,
+    /// At the relay itself (inertia, friction slope, both spans).
+    diag: f64,
+    /// At relay `rl - 1` (0 for the first relay).
+    sub: f64,
+    /// At relay `rl + 1` (0 for the last relay).
+    sup: f64,
+}
+
+fn relay_slopes(
+    c: &CompiledRelays,
+    h: f64,
+    t: &RelayTorque,
+    ka: f64,
+    kb: f64,
+    rl: usize,
+) -> RelaySlopes {
+    let m = c.relays();
+    let r = c.radius_m[rl];
+    let ts = t.d_tension_sum_m;
+    let (wa, wb) = (r + ts, -r + ts);
+    RelaySlopes {
+        wa,
+        wb,
+        diag: 4.0 / (h * h) * c.friction.inertia_kg_m2 + 2.0 / h * t.d_rate_n_m_s + wa * ka * r
+            - wb * kb * r,
+        sub: if rl > 0 {
+            -wa * ka * c.radius_m[rl - 1]
+        } else {
+            0.0
+        },
+        sup: if rl + 1 < m {
+            wb * kb * c.radius_m[rl + 1]
+        } else {
+            0.0
+        },
+    }
+}
+
 /// The chord iteration of [`assemble`]: the local block's factor, `K_zz^-1 K_zq` and
 /// `K_qz` are kept from the last call of [`assemble`] (the joint matrix likewise by the
 /// caller); only the residuals are evaluated at the trial state: `r_z` is solved with
@@ -858,20 +905,20 @@ pub(crate) fn assemble(
         add_kzq(brhs, ix, 1.0, 1, 0);
     }
     // Relay rows: a chain per rope (relay `l` shares span `l + 1` with relay `l + 1`).
-    let (two_h, four_h2) = (2.0 / h, 4.0 / (h * h));
-    let jr = c.friction.inertia_kg_m2;
     for side in 0..2 {
         let sg = if side == 0 { 1.0 } else { -1.0 };
         for rl in 0..m {
             let row = c.iz_psi(side, rl);
             let k = side * m + rl;
-            let r = c.radius_m[rl];
             let (res, t) = relay_residual(c, inp, &sc.psi1, fs, side, rl);
-            let ts = t.d_tension_sum_m;
-            // `(r + ts) f_l + (-r + ts) f_{l+1}`: the weights of the two spans.
-            let (wa, wb) = (r + ts, -r + ts);
-            let (ka, kb) = (ks[side * ns + rl], ks[side * ns + rl + 1]);
-            let diag = four_h2 * jr + two_h * t.d_rate_n_m_s + wa * ka * r - wb * kb * r;
+            let ka = ks[side * ns + rl];
+            let RelaySlopes {
+                wa,
+                wb,
+                diag,
+                sub,
+                sup,
+            } = relay_slopes(c, h, &t, ka, ks[side * ns + rl + 1], rl);
             sc.pinned[row] = diag == 0.0;
             if sc.pinned[row] {
                 // No inertia, no friction and both spans slack: the pulley stays put.
@@ -885,16 +932,8 @@ pub(crate) fn assemble(
             }
             brhs[row * w] = res;
             fa.dia[k] = diag;
-            fa.sub[k] = if rl > 0 {
-                -wa * ka * c.radius_m[rl - 1]
-            } else {
-                0.0
-            };
-            fa.sup[k] = if rl + 1 < m {
-                wb * kb * c.radius_m[rl + 1]
-            } else {
-                0.0
-            };
+            fa.sub[k] = sub;
+            fa.sup[k] = sup;
             if rl == 0 {
                 fa.edge[side] = [
                     if motor_free { wa * ka * sg * rm } else { 0.0 },
@@ -1055,14 +1094,13 @@ pub(crate) fn solve_crossed_relays(
     tol: f64,
 ) {
     let (m, ns) = (c.relays(), c.spans());
-    let (h, j) = (inp.h, c.friction.inertia_kg_m2);
+    let h = inp.h;
     for side in 0..2 {
         for rl in 0..m {
             let k = side * m + rl;
             if !std::mem::take(&mut sc.crossed[k]) {
                 continue;
             }
-            let r = c.radius_m[rl];
             let (ia, ib) = (side * ns + rl, side * ns + rl + 1);
             let (gqa, gqb) = (c.gq(rl, inp.q), c.gq(rl + 1, inp.q));
             // g and dg/dpsi at the trial angle.
@@ -1074,11 +1112,7 @@ pub(crate) fn solve_crossed_relays(
                 sc.f[ia] = fa;
                 sc.f[ib] = fb;
                 let (g, t) = relay_residual(c, inp, &sc.psi1, &sc.f, side, rl);
-                let dg = 4.0 * j / (h * h)
-                    + 2.0 / h * t.d_rate_n_m_s
-                    + t.d_tension_sum_m * r * (ka - kb)
-                    + r * r * (ka + kb);
-                (g, dg)
+                (g, relay_slopes(c, h, &t, ka, kb, rl).diag)
             };
             let mut lo = f64::NEG_INFINITY;
             let mut hi = f64::INFINITY;
@@ -1148,8 +1182,6 @@ pub(crate) fn relax_relays(
 ) {
     let (m, ns) = (c.relays(), c.spans());
     let h = inp.h;
-    let (two_h, four_h2) = (2.0 / h, 4.0 / (h * h));
-    let jr = c.friction.inertia_kg_m2;
     for _ in 0..RELAX_MAX_ITERATIONS {
         let mut worst = 0.0f64;
         // The two ropes' relays do not share a span: both are solved from one
@@ -1158,22 +1190,9 @@ pub(crate) fn relax_relays(
         for side in 0..2 {
             for rl in 0..m {
                 let (g, t) = relay_residual(c, inp, &sc.psi1, &sc.f, side, rl);
-                let r = c.radius_m[rl];
                 let (ka, kb) = (sc.k[side * ns + rl], sc.k[side * ns + rl + 1]);
-                let ts = t.d_tension_sum_m;
-                let diag =
-                    four_h2 * jr + two_h * t.d_rate_n_m_s + ts * r * (ka - kb) + r * r * (ka + kb);
-                let sub = if rl > 0 {
-                    -(ts + r) * ka * c.radius_m[rl - 1]
-                } else {
-                    0.0
-                };
-                let sup = if rl + 1 < m {
-                    (ts - r) * kb * c.radius_m[rl + 1]
-                } else {
-                    0.0
-                };
-                sc.tri[rl] = [sub, diag, sup, -g];
+                let d = relay_slopes(c, h, &t, ka, kb, rl);
+                sc.tri[rl] = [d.sub, d.diag, d.sup, -g];
             }
             // Thomas algorithm (the chain is diagonally dominant: inertia and friction
             // slope add to the diagonal).
