@@ -25,7 +25,7 @@ fn run(arm: &DrivenArm) -> (Vec<Vec<f64>>, f64) {
 fn main() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../../scenarios/arm_dyneema2_base_step_relay_friction.toml");
-    let mut arm = longreach_arm::scenario::load(&path)
+    let arm = longreach_arm::scenario::load(&path)
         .unwrap_or_else(|e| panic!("{e}"))
         .arm;
     let tolerances: Vec<f64> = std::env::args()
@@ -37,12 +37,15 @@ fn main() {
     } else {
         tolerances
     };
-    arm.newton_tolerance = 1e-13;
-    let (reference, it_ref) = run(&arm);
+    let with = |tol: f64| {
+        arm.clone()
+            .with_newton_tolerance(tol)
+            .expect("a tolerance > 0")
+    };
+    let (reference, it_ref) = run(&with(1e-13));
     println!("1e-13: {it_ref:.2} Newton iterations per step (reference)");
     for tol in tolerances {
-        arm.newton_tolerance = tol;
-        let (q, it) = run(&arm);
+        let (q, it) = run(&with(tol));
         let worst = q
             .iter()
             .zip(&reference)

@@ -100,7 +100,8 @@ fn dump_arm(path: &Path) -> Traj {
     let mut t = Traj::default();
     for step in 0..=steps {
         if step > 0 {
-            arm.step(&mut st).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            arm.step(&mut st)
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         }
         for (j, q) in st.q_rad.iter().enumerate() {
             t.push(format!("q{j}_rad"), *q);
@@ -142,7 +143,10 @@ fn rig_traj(model: &RigModel, input: &InputSignal) -> Traj {
 
 fn dump(out: &Path) {
     std::fs::create_dir_all(out).unwrap();
-    for path in scenario_files("arm_").into_iter().chain(scenario_files("arm5_")) {
+    for path in scenario_files("arm_")
+        .into_iter()
+        .chain(scenario_files("arm5_"))
+    {
         let name = path.file_stem().unwrap().to_string_lossy().to_string();
         dump_arm(&path).write(&out.join(format!("{name}.bin")));
         println!("{name}");

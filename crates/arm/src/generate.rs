@@ -5,7 +5,7 @@ use std::fmt::Write;
 
 use longreach_rope::{Catalog, LawKind, RopeLaw};
 
-use crate::transmission::{uniform_pairs, MotorMode, MotorSpec, TensionerKind};
+use crate::transmission::{uniform_pairs, MotorMode, MotorSpec, Tensioner};
 use crate::{parse_urdf, ArmError, Command, DrivenArm};
 
 /// Pulley radius of every pulley of [`anchor_chain`] (motor, joint, relays), m (the
@@ -59,7 +59,7 @@ pub fn anchor_chain(n_links: usize, kind: LawKind, dt_s: f64) -> Result<DrivenAr
         &law,
         ANCHOR_PULLEY_RADIUS_M,
         ANCHOR_PRELOAD_N,
-        TensionerKind::Fixed,
+        Tensioner::Fixed,
         motor,
         ANCHOR_MOTOR_OFFSET_M,
     );

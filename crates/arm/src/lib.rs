@@ -7,10 +7,10 @@
 //! - [`dynamics`]: recursive Newton-Euler on the spec: [`gravity_torques`],
 //!   [`energy`], mass matrix, inverse and forward dynamics.
 //! - [`generate`]: [`chain_urdf`], uniform planar chains for benchmarks.
-//! - [`transmission`]: rope pairs, relays, routing matrix `R`, motors.
-//! - [`relay`]: relay-pulley friction: ropes split into spans, relay pulley states.
+//! - [`transmission`]: routes and span lengths of the rope pairs from the URDF chain
+//!   (the pairs themselves are the transmission core's, `longreach_drive::transmission`).
 //! - [`system`]: [`DrivenArm`] / [`DrivenState`]: links + ropes + motors + servos,
-//!   integrated implicitly (trapezoidal rule, exact-hold ropes, Newton); see docs/arm.md.
+//!   integrated implicitly by the transmission core's step; see docs/arm.md.
 //! - [`fast`]: allocation-free kinematics, Newton-Euler and mass matrix for the step.
 //! - [`command`]: joint references (hold, step, trapezoid, sine, series).
 //! - [`scenario`]: arm scenario files -> [`DrivenArm`]; [`run`]: time series and metrics.
@@ -21,7 +21,6 @@ pub mod error;
 pub mod fast;
 pub mod generate;
 pub mod multibody;
-pub mod relay;
 pub mod run;
 pub mod scenario;
 pub mod spec;
@@ -35,6 +34,8 @@ pub use error::ArmError;
 pub use generate::{anchor_chain, chain_urdf};
 pub use multibody::{step, ArmData, ArmModel, ModelOptions};
 pub use spec::{ArmSpec, Element, Frame, Inertial, JointKind, JointSpec, LinkSpec, SpecError};
-pub use system::{DrivenArm, DrivenState, StaticPair, SystemEnergy, RELAY_NEWTON_TOLERANCE};
-pub use transmission::{MotorMode, MotorSpec, PairSpec, Relay, RoutingMatrix, TensionerKind};
+pub use system::{
+    ArmScratch, DrivenArm, DrivenState, StaticPair, SystemEnergy, RELAY_NEWTON_TOLERANCE,
+};
+pub use transmission::{MotorMode, MotorSpec, PairSpec, Relay, RoutingMatrix, Tensioner};
 pub use urdf::{load_urdf, parse_urdf, UrdfError};

@@ -73,10 +73,10 @@ pub fn columns(arm: &DrivenArm) -> Vec<String> {
         c.push(format!("q_{}_rad", j.name));
         c.push(format!("qref_{}_rad", j.name));
     }
-    for p in &arm.pairs {
+    for p in arm.pairs() {
         c.push(format!("motor_{}_rad", arm.spec.joints[p.spec.joint].name));
     }
-    for p in &arm.pairs {
+    for p in arm.pairs() {
         let name = &arm.spec.joints[p.spec.joint].name;
         match &p.relays {
             None => {
@@ -96,7 +96,7 @@ pub fn columns(arm: &DrivenArm) -> Vec<String> {
     c
 }
 
-fn row(arm: &DrivenArm, st: &DrivenState) -> Vec<f64> {
+fn row(arm: &DrivenArm, st: &DrivenState) -> Result<Vec<f64>, ArmError> {
     let mut r = vec![st.time_s];
     for j in 0..st.q_rad.len() {
         r.push(st.q_rad[j]);
@@ -104,7 +104,7 @@ fn row(arm: &DrivenArm, st: &DrivenState) -> Vec<f64> {
     }
     r.extend(&st.motor_rad);
     for (p, pr) in st.ropes.iter().enumerate() {
-        if arm.pairs[p].relays.is_some() {
+        if arm.pairs()[p].relays.is_some() {
             for span in &st.relays[p].spans {
                 r.push(span[0].tension_n);
                 r.push(span[1].tension_n);
@@ -114,9 +114,9 @@ fn row(arm: &DrivenArm, st: &DrivenState) -> Vec<f64> {
             r.push(pr[1].tension_n);
         }
     }
-    let tip = arm.tip_m(&st.q_rad);
+    let tip = arm.tip_m(&st.q_rad)?;
     r.extend([tip.x, tip.y, tip.z]);
-    r
+    Ok(r)
 }
 
 /// Runs `arm` for `duration_s` from its initial state, recording every
@@ -151,12 +151,12 @@ pub fn run_observed(
     let steps = (duration_s / arm.dt_s()).round() as usize;
     let mut st = arm.initial_state();
     let n = st.q_rad.len();
-    let np = arm.pairs.len();
+    let np = arm.pairs().len();
     let mut trace = Trace {
         columns: columns(arm),
         rows: Vec::with_capacity(steps / output_every.max(1) + 2),
     };
-    trace.rows.push(row(arm, &st));
+    trace.rows.push(row(arm, &st)?);
     observe(&st);
     let mut q_hist: Vec<Vec<f64>> = vec![Vec::with_capacity(steps + 1); n];
     let mut t_hist = Vec::with_capacity(steps + 1);
@@ -165,9 +165,9 @@ pub fn run_observed(
         h.push(st.q_rad[j]);
     }
     let static_sf: Vec<f64> = arm
-        .pairs
+        .pairs()
         .iter()
-        .zip(arm.static_pairs(&arm.initial_q_rad))
+        .zip(arm.static_pairs(arm.initial_q_rad()))
         .map(|(p, s)| p.spec.rope.tensile_strength_n / s.f_pos_n.max(s.f_neg_n))
         .collect();
     let mut peak = vec![0.0f64; np];
@@ -178,7 +178,7 @@ pub fn run_observed(
     let tensions_into = |st: &DrivenState, out: &mut Vec<(usize, f64)>| {
         out.clear();
         for p in 0..np {
-            if arm.pairs[p].relays.is_some() {
+            if arm.pairs()[p].relays.is_some() {
                 for span in &st.relays[p].spans {
                     out.extend(span.iter().map(|r| (p, r.tension_n)));
                 }
@@ -212,7 +212,7 @@ pub fn run_observed(
             h.push(st.q_rad[j]);
         }
         if i % output_every == 0 || i == steps {
-            trace.rows.push(row(arm, &st));
+            trace.rows.push(row(arm, &st)?);
         }
         if i % 1000 == 0 {
             progress(i, steps);
@@ -221,8 +221,8 @@ pub fn run_observed(
     let t_end = st.time_s;
     let mut joints = Vec::with_capacity(n);
     for j in 0..n {
-        let cmd = &arm.commands[j];
-        let q0 = arm.initial_q_rad[j];
+        let cmd = &arm.commands()[j];
+        let q0 = arm.initial_q_rad()[j];
         let hist = &q_hist[j];
         let target = cmd.target_rad(q0);
         let move_rad = target.map_or(0.0, |t| (t - q0).abs());
@@ -269,7 +269,7 @@ pub fn run_observed(
         });
     }
     let pairs = arm
-        .pairs
+        .pairs()
         .iter()
         .enumerate()
         .map(|(p, pair)| PairMetrics {
@@ -283,7 +283,7 @@ pub fn run_observed(
             static_safety_factor: static_sf[p],
         })
         .collect();
-    let tip_error_m = (arm.tip_m(&st.q_rad) - arm.tip_m(&st.q_ref_rad)).norm();
+    let tip_error_m = (arm.tip_m(&st.q_rad)? - arm.tip_m(&st.q_ref_rad)?).norm();
     Ok((
         trace,
         RunMetrics {

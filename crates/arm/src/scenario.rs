@@ -10,7 +10,8 @@ use serde::Deserialize;
 
 use crate::command::Command;
 use crate::transmission::{
-    proximal_joints, span_lengths_m, MotorMode, MotorSpec, PairSpec, Relay, TensionerKind,
+    chain_lengths_m, proximal_joints, relay_span_lengths_m, MotorMode, MotorSpec, PairSpec, Relay,
+    Tensioner,
 };
 use crate::{load_urdf, DrivenArm};
 
@@ -465,7 +466,7 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
                 let mut out = Vec::new();
                 for (k, relay) in r.iter().enumerate() {
                     out.push(Relay {
-                        joint: joint_of(&relay.joint, &f(&format!("route.{k}.joint")))?,
+                        joint: Some(joint_of(&relay.joint, &f(&format!("route.{k}.joint")))?),
                         radius_m: relay.radius_m,
                         sign: relay.sign,
                     });
@@ -486,7 +487,7 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
                         )
                     })?;
                     out.push(Relay {
-                        joint: k,
+                        joint: Some(k),
                         radius_m,
                         sign: 1.0,
                     });
@@ -494,11 +495,12 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
                 out
             }
         };
-        let spans = span_lengths_m(&spec, j, doc.arm.motor_offset_m);
-        let length_m = sec.length_m.unwrap_or_else(|| spans.iter().sum());
+        let chain = chain_lengths_m(&spec, j, doc.arm.motor_offset_m);
+        let length_m = sec.length_m.unwrap_or_else(|| chain.iter().sum());
+        let spans = relay_span_lengths_m(&spec, j, &chain, &route, length_m);
         let tensioner = match sec.tensioner.as_deref() {
-            None | Some("fixed") => TensionerKind::Fixed,
-            Some("constant_force") => TensionerKind::ConstantForce,
+            None | Some("fixed") => Tensioner::Fixed,
+            Some("constant_force") => Tensioner::ConstantForce,
             Some(other) => {
                 return Err(ferr(
                     &f("tensioner"),

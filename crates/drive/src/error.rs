@@ -28,6 +28,14 @@ pub enum DriveError {
         /// What went wrong.
         what: String,
     },
+    /// A transmission (rope pair, motor, route) is not usable.
+    #[error("{field}: {reason}")]
+    BadTransmission {
+        /// Which field (e.g. `transmission[2] (joint j3).motor.inertia_kg_m2`).
+        field: String,
+        /// What is wrong and what to do.
+        reason: String,
+    },
     /// A recorded input series is unusable.
     #[error("input series: {0}")]
     BadSeries(String),

@@ -6,15 +6,15 @@
 pub mod effects;
 mod error;
 pub mod freq;
-pub mod relay;
 mod rig;
 pub mod signal;
 pub mod sweep;
 pub mod tf;
+pub mod transmission;
 
 pub use error::DriveError;
-pub use relay::{RelayFriction, RelayTorque};
-pub use rig::{RelayState, RigModel, RigSpec, RigState, Tensioner, MAX_RELAY_PULLEYS};
+pub use rig::{RelayState, RigModel, RigSpec, RigState, MAX_RELAY_PULLEYS};
 pub use signal::{InputSignal, SineStep, SteppedSine};
 pub use sweep::{FrequencyPoint, RigTrace};
 pub use tf::{rig_resonance, rig_transfer, Resonance};
+pub use transmission::{RelayFriction, RelayTorque, Tensioner};

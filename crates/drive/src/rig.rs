@@ -52,25 +52,14 @@
 //! algorithm, leaving a 2 x 2 system in the output angle and the carriage.
 
 use longreach_rope::{Piece, PreparedStep, RopeLaw, RopeState, RopeStepper};
-use serde::{Deserialize, Serialize};
 
 use crate::error::{non_negative, positive, DriveError};
-use crate::relay::RelayFriction;
+use crate::transmission::{RelayFriction, Tensioner};
 
 /// Most relay pulleys per rope the plant takes when they have friction.
 pub const MAX_RELAY_PULLEYS: u32 = 8;
 /// Spans per rope at most (`MAX_RELAY_PULLEYS + 1`).
 const MAX_SPANS: usize = MAX_RELAY_PULLEYS as usize + 1;
-
-/// How the ropes are pre-tensioned.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Tensioner {
-    /// A carriage pulled with a constant force holds `f1 + f2 = 2 * mean_tension_n`.
-    ConstantForce,
-    /// Rope ends fixed after pre-tensioning to `mean_tension_n` at rest.
-    Fixed,
-}
 
 /// Everything that defines a rig (SI units; the fields of `[rig]` in files).
 #[derive(Debug, Clone, PartialEq)]

@@ -80,9 +80,9 @@ impl Layout {
     fn new(arm: &DrivenArm) -> Self {
         Self {
             joints: arm.spec.ndofs(),
-            pairs: arm.pairs.len(),
+            pairs: arm.pairs().len(),
             spans: arm
-                .pairs
+                .pairs()
                 .iter()
                 .map(|p| p.relays.as_ref().map_or(1, |c| c.spans()))
                 .collect(),
@@ -282,9 +282,9 @@ impl Drawer {
         let scale_m = draw_scale_m(&arm);
         let rope_radius_m = 0.004 * scale_m;
         let ropes = cols.strips("/world/ropes", rope_radius_m);
-        let joint_name = |p: usize| arm.spec.joints[arm.pairs[p].spec.joint].name.clone();
+        let joint_name = |p: usize| arm.spec.joints[arm.pairs()[p].spec.joint].name.clone();
         let joints: Vec<&str> = arm.spec.joints.iter().map(|j| j.name.as_str()).collect();
-        let pairs: Vec<String> = (0..arm.pairs.len()).map(joint_name).collect();
+        let pairs: Vec<String> = (0..arm.pairs().len()).map(joint_name).collect();
         let named = |suffixes: &[&str], of: &[&str]| -> Vec<String> {
             suffixes
                 .iter()
@@ -303,13 +303,13 @@ impl Drawer {
             cols.series_group("/series/tensions/tension_n", named(&[" +", " -"], &pairs));
         let tip_error = cols.series("/series/tip/error_m");
         let rope_pulleys = arm
-            .pairs
+            .pairs()
             .iter()
             .map(|pair| {
                 let mut route = pair.spec.route.clone();
                 route.sort_by_key(|r| r.joint);
                 std::iter::once((None, pair.spec.motor_radius_m))
-                    .chain(route.iter().map(|r| (Some(r.joint), r.radius_m)))
+                    .chain(route.iter().map(|r| (r.joint, r.radius_m)))
                     .chain(std::iter::once((
                         Some(pair.spec.joint),
                         pair.spec.joint_radius_m,
@@ -317,7 +317,7 @@ impl Drawer {
                     .collect()
             })
             .collect();
-        let np = arm.pairs.len();
+        let np = arm.pairs().len();
         let motor_points_m = (0..np)
             .map(|p| {
                 let s = scale_m;
@@ -418,7 +418,7 @@ impl Drawer {
         // origin is the joint origin).
         for (j, joint) in spec.joints.iter().enumerate() {
             let mut radii = Vec::new();
-            for p in &self.arm.pairs {
+            for p in self.arm.pairs() {
                 if p.spec.joint == j {
                     radii.push(p.spec.joint_radius_m);
                 }
@@ -426,7 +426,7 @@ impl Drawer {
                     p.spec
                         .route
                         .iter()
-                        .filter(|r| r.joint == j)
+                        .filter(|r| r.joint == Some(j))
                         .map(|r| r.radius_m),
                 );
             }
@@ -454,14 +454,17 @@ impl Drawer {
                 rec.report(&path, s.log_static(path.as_str(), &archetypes));
             }
         }
-        let np = self.arm.pairs.len();
+        let np = self.arm.pairs().len();
         rec.report(
             "/world/motors",
             s.log_static(
                 "/world/motors",
                 &Cylinders3D::from_lengths_and_radii(
                     vec![0.03 * self.scale_m as f32; np],
-                    self.arm.pairs.iter().map(|p| p.spec.motor_radius_m as f32),
+                    self.arm
+                        .pairs()
+                        .iter()
+                        .map(|p| p.spec.motor_radius_m as f32),
                 )
                 .with_centers(
                     self.motor_points_m
@@ -525,8 +528,8 @@ impl Drawer {
         self.strip_points_m.clear();
         self.strip_ends.clear();
         let mut spans_n = st.spans_n;
-        for p in 0..self.arm.pairs.len() {
-            let full = 2.0 * self.arm.pairs[p].spec.preload_n;
+        for p in 0..self.arm.pairs().len() {
+            let full = 2.0 * self.arm.pairs()[p].spec.preload_n;
             // Spans motor side first; a pair without relay friction has one tension
             // along its whole rope.
             let count = self.layout.spans[p];
@@ -688,7 +691,9 @@ fn quat(q: &UnitQuaternion<f64>) -> Quaternion {
 /// Length scale for drawing sizes: a tenth of the arm's reach at its initial pose,
 /// clamped to 0.1..1 m.
 fn draw_scale_m(arm: &DrivenArm) -> f64 {
-    (0.1 * arm.tip_m(&arm.initial_q_rad).norm()).clamp(0.1, 1.0)
+    // The initial angles were checked when the arm was built: the tip is defined.
+    let reach_m = arm.tip_m(arm.initial_q_rad()).map_or(1.0, |t| t.norm());
+    (0.1 * reach_m).clamp(0.1, 1.0)
 }
 
 #[cfg(test)]
@@ -705,9 +710,9 @@ mod tests {
                 .map(|j| 0.3 * ((k * 7 + j * 3) as f64).sin())
                 .collect();
             logger.dynamics.kinematics(&q, &mut logger.kin);
-            let d = (logger.tip_m(&logger.kin) - arm.tip_m(&q)).norm();
+            let d = (logger.tip_m(&logger.kin) - arm.tip_m(&q).unwrap()).norm();
             assert!(d < 1e-12, "pose {k}: {d} m");
-            assert!(arm.tip_m(&q).norm() > 1.0);
+            assert!(arm.tip_m(&q).unwrap().norm() > 1.0);
         }
     }
 
@@ -728,7 +733,7 @@ mod tests {
         layout.push(&arm, &st, &mut batch);
         assert_eq!(batch.len(), 1 + layout.width());
         let f = layout.frame(&batch[1..]);
-        let np = arm.pairs.len();
+        let np = arm.pairs().len();
         assert_eq!(f.time_s, st.time_s);
         assert_eq!(f.q_rad, &st.q_rad[..]);
         assert_eq!(f.q_ref_rad, &st.q_ref_rad[..]);

@@ -72,7 +72,7 @@ pub const TWISTED_URDF: &str = r#"<?xml version="1.0"?>
 "#;
 
 use longreach_arm::{
-    load_urdf, ArmSpec, Command, DrivenArm, MotorMode, MotorSpec, PairSpec, TensionerKind,
+    load_urdf, ArmSpec, Command, DrivenArm, MotorMode, MotorSpec, PairSpec, Tensioner,
 };
 use longreach_rope::{Catalog, LawKind, RopeLaw};
 
@@ -84,7 +84,7 @@ pub fn uniform_pairs(
     kind: LawKind,
     r_m: f64,
     preload_n: f64,
-    tensioner: TensionerKind,
+    tensioner: Tensioner,
     motor: MotorSpec,
 ) -> Vec<PairSpec> {
     let params = Catalog::builtin().get(rope).unwrap().clone();
@@ -135,14 +135,19 @@ pub fn kinematic() -> MotorSpec {
 
 /// arm5 (the MuJoCo anchor) with elastic stainless ropes, r = 25 mm, servo motors.
 pub fn arm5_driven(motor: MotorSpec, commands: Vec<Command>) -> DrivenArm {
+    arm5_driven_preload(motor, commands, 20000.0)
+}
+
+/// [`arm5_driven`] with another preload per rope, N.
+pub fn arm5_driven_preload(motor: MotorSpec, commands: Vec<Command>, preload_n: f64) -> DrivenArm {
     let spec = load_urdf(robot_path("arm5/arm5.urdf")).unwrap();
     let pairs = uniform_pairs(
         &spec,
         "stainless1",
         LawKind::Elastic,
         0.025,
-        20000.0,
-        TensionerKind::Fixed,
+        preload_n,
+        Tensioner::Fixed,
         motor,
     );
     DrivenArm::new(spec, pairs, commands, vec![0.0; 5], 1e-3).unwrap()

@@ -20,12 +20,9 @@ fn energy_is_conserved_without_damping_or_gravity() {
             gravity_feedforward: false,
         },
     };
-    let mut arm = arm5_driven(motor, vec![Command::Hold; 5]);
-    arm.set_gravity(Vector3::zeros());
-    arm.set_joint_damping(0.0);
-    for p in arm.pairs.iter_mut() {
-        p.spec.preload_n = 2000.0;
-    }
+    let arm = arm5_driven_preload(motor, vec![Command::Hold; 5], 2000.0)
+        .with_gravity(Vector3::zeros())
+        .with_joint_damping(0.0);
     let mut st = arm.initial_state();
     // Kick: joint and motor velocities, and every rope pair stretched by turning its
     // motor 0.2 rad (u = 5 mm) at the start (the ropes' state follows on the first step).
@@ -37,7 +34,7 @@ fn energy_is_conserved_without_damping_or_gravity() {
         *m = theta0[p] + 0.2;
     }
     st = q_free;
-    for (p, pair) in arm.pairs.iter().enumerate() {
+    for (p, pair) in arm.pairs().iter().enumerate() {
         for (side, sign) in [(0, 1.0), (1, -1.0)] {
             let r = &mut st.ropes[p][side];
             let rq: f64 = pair.row.iter().zip(&st.q_rad).map(|(a, b)| a * b).sum();
@@ -107,9 +104,9 @@ fn coupling_distal_tensions_change_as_routing_predicts() {
     let motor = kinematic();
     let mut cmds = vec![Command::Hold; 5];
     cmds[0] = trapezoid(0.2, 0.1, 0.2, 0.5);
-    let mut arm = arm5_driven(motor, cmds);
-    arm.set_gravity(Vector3::zeros());
-    arm.compensate_routing = false;
+    let arm = arm5_driven(motor, cmds)
+        .with_gravity(Vector3::zeros())
+        .with_routing_compensation(false);
     let mut st = arm.initial_state();
     let q0 = st.q_rad.clone();
     let f0: Vec<[f64; 2]> = st

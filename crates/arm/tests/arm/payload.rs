@@ -38,7 +38,7 @@ fn scenario(payload: &str, duration_s: f64, hold: bool) -> DrivenArm {
 
 fn rope_torques(arm: &DrivenArm) -> Vec<f64> {
     let phi: Vec<f64> = arm
-        .static_pairs(&arm.initial_q_rad)
+        .static_pairs(arm.initial_q_rad())
         .iter()
         .map(|s| s.phi_n)
         .collect();
@@ -107,7 +107,7 @@ fn tip_sag_grows_with_the_payload() {
             3.0,
             true,
         );
-        let z0 = arm.tip_m(&arm.initial_q_rad).z;
+        let z0 = arm.tip_m(arm.initial_q_rad()).unwrap().z;
         let (trace, metrics) = run(&arm, 3.0, 100, 1.0, &mut |_, _| {}).unwrap();
         let zc = trace.columns.iter().position(|c| c == "tip_z_m").unwrap();
         let z1 = trace.rows[trace.rows.len() - 1][zc];

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use common::{kinematic, robot_path};
 use longreach_arm::scenario::parse;
-use longreach_arm::transmission::{uniform_pairs, TensionerKind};
+use longreach_arm::transmission::{uniform_pairs, Tensioner};
 use longreach_arm::{load_urdf, Command, DrivenArm, DrivenState};
 use longreach_drive::RelayFriction;
 use longreach_rope::{Catalog, LawKind, RopeLaw};
@@ -72,14 +72,14 @@ fn zero_friction_case(tensioner: &str) {
         step,
     );
     let a = parse(&ideal, "ideal", &scenarios()).unwrap().arm;
-    let mut b = parse(&zero, "zero", &scenarios()).unwrap().arm;
+    let b = parse(&zero, "zero", &scenarios()).unwrap().arm;
     // The comparison checks the span formulation, not the default tolerance of a step
     // with relay friction (1e-9 rad): solved to 1e-11 the two must agree to 1e-9.
-    assert!(b.newton_tolerance > 1e-11);
-    b.newton_tolerance = 1e-11;
+    assert!(b.newton_tolerance() > 1e-11);
+    let b = b.with_newton_tolerance(1e-11).unwrap();
     // j5's ropes: motor offset 0.5 m, then joint to joint along the URDF (2.6, 2.4, 2.2,
     // 2.0 m), cut at the relays of j1..j4; the span geometry adds up to the routing row.
-    let r5 = b.pairs[4].relays.as_ref().unwrap();
+    let r5 = b.pairs()[4].relays.as_ref().unwrap();
     for (got, want) in r5.span_length_m.iter().zip([0.5, 2.6, 2.4, 2.2, 2.0]) {
         assert!((got - want).abs() < 1e-12, "{:?}", r5.span_length_m);
     }
@@ -87,7 +87,7 @@ fn zero_friction_case(tensioner: &str) {
     let nc = r5.cols.len();
     for (a_col, &joint) in r5.cols.iter().enumerate() {
         let sum: f64 = (0..r5.spans()).map(|i| r5.geometry_m[i * nc + a_col]).sum();
-        assert!((sum - b.pairs[4].row[joint]).abs() < 1e-15);
+        assert!((sum - b.pairs()[4].row[joint]).abs() < 1e-15);
     }
     let (mut sa, mut sb) = (a.initial_state(), b.initial_state());
     let mut worst_q = 0.0f64;
@@ -175,7 +175,7 @@ fn slowly_moved_joint_gives_the_sliding_tension_ratio_across_every_relay() {
 /// `coefficient r (T_a + T_b)`.
 fn worst_relay_residual(arm: &DrivenArm, st: &DrivenState) -> f64 {
     let mut worst = 0.0f64;
-    for (p, pair) in arm.pairs.iter().enumerate() {
+    for (p, pair) in arm.pairs().iter().enumerate() {
         let Some(c) = &pair.relays else { continue };
         let rs = &st.relays[p];
         for (rl, &r) in c.radius_m.iter().enumerate() {
@@ -204,7 +204,7 @@ fn every_relay_meets_its_equation_at_every_step_through_stick_slip() {
     // accepted with its equation off by up to 7.3 friction capacities in this run; it
     // is now solved alone inside the band and the step goes on until every equation
     // holds.
-    let mut arm = longreach_arm::scenario::load(
+    let arm = longreach_arm::scenario::load(
         &scenarios().join("arm_dyneema2_base_step_relay_friction.toml"),
     )
     .unwrap()
@@ -227,7 +227,7 @@ fn every_relay_meets_its_equation_at_every_step_through_stick_slip() {
     // Tolerance of the default solve: the same run solved to 1e-12 stays within 1e-8 rad
     // at every step (with the relays solved alone: 1.8e-9; before, the old default of
     // 1e-9 gave 3.2e-9 over 10 s and 1e-8 gave 2.3e-7).
-    arm.newton_tolerance = 1e-12;
+    let arm = arm.with_newton_tolerance(1e-12).unwrap();
     let mut tight = arm.initial_state();
     let mut gap = 0.0f64;
     for q in &at_default {
@@ -252,16 +252,16 @@ fn arm5_friction(friction: Option<RelayFriction>) -> DrivenArm {
         &law,
         0.025,
         20000.0,
-        TensionerKind::Fixed,
+        Tensioner::Fixed,
         motor,
         0.5,
     );
     for p in &mut pairs {
         p.relay_friction = friction;
     }
-    let mut arm = DrivenArm::new(spec, pairs, vec![Command::Hold; 5], vec![0.0; 5], 1e-3).unwrap();
-    arm.set_joint_damping(0.0);
-    arm
+    DrivenArm::new(spec, pairs, vec![Command::Hold; 5], vec![0.0; 5], 1e-3)
+        .unwrap()
+        .with_joint_damping(0.0)
 }
 
 /// Total energy after every step of a 3 s free swing from a kick.
@@ -376,7 +376,7 @@ fn bad_relay_friction_names_file_line_and_field() {
         step,
     );
     let arm = parse(&text, "ok.toml", &scenarios()).unwrap().arm;
-    let rf = arm.pairs[2].spec.relay_friction.unwrap();
+    let rf = arm.pairs()[2].spec.relay_friction.unwrap();
     assert!((rf.coefficient - 0.02).abs() < 1e-15 && (rf.inertia_kg_m2 - 1e-4).abs() < 1e-18);
     let text = text.replace("params = [0.02, 1e-4]", "params = [0.5, 1e-4]");
     let e = parse(&text, "bad.toml", &scenarios()).unwrap_err();

@@ -5,7 +5,7 @@
 use crate::common;
 
 use common::{kinematic, robot_path};
-use longreach_arm::transmission::{PairSpec, TensionerKind};
+use longreach_arm::transmission::{PairSpec, Tensioner};
 use longreach_arm::{load_urdf, Command, DrivenArm};
 use longreach_drive::sweep::{frequency_response, run};
 use longreach_drive::{InputSignal, RigModel, RigSpec, RigTrace, SteppedSine};
@@ -44,7 +44,7 @@ fn compare(rope: &str, kind: LawKind, mean_tension_n: f64) {
         span_lengths_m: vec![15.2],
         preload_n: mean_tension_n,
         prestretch_n: 490.0,
-        tensioner: TensionerKind::ConstantForce,
+        tensioner: Tensioner::ConstantForce,
         motor: kinematic(),
         effects: vec![],
         relay_friction: None,

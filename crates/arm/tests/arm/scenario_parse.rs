@@ -29,12 +29,12 @@ joint = "q2"
 fn defaults_route_and_lengths_come_from_the_geometry() {
     let sc = parse(BASE, "base.toml", robots()).unwrap();
     let arm = &sc.arm;
-    assert_eq!(arm.pairs.len(), 2);
+    assert_eq!(arm.pairs().len(), 2);
     // Pair 2 runs over the relay at q1 (r = 25 mm): row [0.025, 0.025, 0, 0, 0].
     assert_eq!(arm.routing.row(1), &[0.025, 0.025, 0.0, 0.0, 0.0]);
     // Rope length: 0.5 m motor offset + 2 m link (MuJoCo anchor L_2 = 2.5 m).
-    assert!((arm.pairs[1].spec.length_m - 2.5).abs() < 1e-12);
-    assert_eq!(arm.pairs[1].spec.span_lengths_m.len(), 2);
+    assert!((arm.pairs()[1].spec.length_m - 2.5).abs() < 1e-12);
+    assert_eq!(arm.pairs()[1].spec.span_lengths_m.len(), 2);
 }
 
 #[test]
@@ -44,7 +44,7 @@ fn effects_from_the_registry_change_the_law() {
         "[[transmission]]\njoint = \"q2\"\neffects = [{ name = \"internal_damping\" }]",
     );
     let sc = parse(&text, "fx.toml", robots()).unwrap();
-    let (a, b) = (&sc.arm.pairs[0].spec, &sc.arm.pairs[1].spec);
+    let (a, b) = (&sc.arm.pairs()[0].spec, &sc.arm.pairs()[1].spec);
     assert_eq!(b.effects, vec!["internal_damping".to_string()]);
     assert!(a.law != b.law, "the effect did not change the law");
     let bad = BASE.replace(
@@ -96,7 +96,7 @@ fn csv_command_is_read_and_interpolated() {
             "joint = \"q2\"\ncommand = { kind = \"csv\", file = \"ref.csv\" }",
         );
     let sc = parse(&text, "csv.toml", dir.path()).unwrap();
-    let c = &sc.arm.commands[1];
+    let c = &sc.arm.commands()[1];
     assert!((c.angle_rad(0.0, 0.5) - 0.1).abs() < 1e-12);
     assert!((c.angle_rad(0.0, 3.0) - 0.2).abs() < 1e-12);
     let bad = text.replace("ref.csv", "missing.csv");

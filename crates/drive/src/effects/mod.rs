@@ -51,6 +51,7 @@
 //! it up too; give it parameter values the data can reveal.
 
 mod extra_retardation;
+mod hooks;
 mod internal_damping;
 mod nonlinear_creep;
 mod nonlinear_stiffness;
@@ -58,6 +59,7 @@ mod plastic_ratchet;
 mod relay_friction;
 
 pub use extra_retardation::ExtraRetardation;
+pub use hooks::{JointForce, JointTorque};
 pub use internal_damping::InternalDamping;
 pub use nonlinear_creep::NonlinearCreepEffect;
 pub use nonlinear_stiffness::NonlinearStiffness;
