@@ -43,7 +43,7 @@ fn bench_step(c: &mut Criterion) {
                     let theta = amp * (w * i as f64 * 1e-3).sin();
                     model.step(&mut st, black_box(theta)).unwrap();
                 }
-                black_box(st.output_rad)
+                black_box(st.output_rad())
             })
         });
     }

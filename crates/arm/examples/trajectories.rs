@@ -18,7 +18,6 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use longreach_drive::sweep::run as run_rig;
 use longreach_drive::{InputSignal, RelayFriction, RigModel, RigSpec, SteppedSine, Tensioner};
 use longreach_rope::{Catalog, LawKind, RopeLaw};
 use longreach_scenario::BodeScenario;
@@ -130,8 +129,8 @@ fn rig_traj(model: &RigModel, input: &InputSignal) -> Traj {
                 .step(&mut st, input.angle_rad(k as f64 * dt))
                 .unwrap_or_else(|e| panic!("{e}"));
         }
-        t.push("output_rad".into(), st.output_rad);
-        t.push("carriage_m".into(), st.carriage_m);
+        t.push("output_rad".into(), st.output_rad());
+        t.push("carriage_m".into(), st.carriage_m());
         for i in 0..2 {
             for (j, f) in st.span_tensions_n(i).iter().enumerate() {
                 t.push(format!("rope{i}_span{j}_n"), *f);

@@ -33,6 +33,6 @@ fn main() {
     println!(
         "{n} steps, {:.1} ns/step, phi = {}",
         el.as_nanos() as f64 / n as f64,
-        st.output_rad
+        st.output_rad()
     );
 }

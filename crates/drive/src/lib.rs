@@ -13,8 +13,8 @@ pub mod tf;
 pub mod transmission;
 
 pub use error::DriveError;
-pub use rig::{RelayState, RigModel, RigSpec, RigState, MAX_RELAY_PULLEYS};
+pub use rig::{RigModel, RigSpec, RigState, MAX_RELAY_PULLEYS};
 pub use signal::{InputSignal, SineStep, SteppedSine};
 pub use sweep::{FrequencyPoint, RigTrace};
 pub use tf::{rig_resonance, rig_transfer, Resonance};
-pub use transmission::{RelayFriction, RelayTorque, Tensioner};
+pub use transmission::{RelayFriction, RelayState, RelayTorque, Tensioner};

@@ -43,11 +43,11 @@ pub struct RigTrace {
 
 impl RigTrace {
     fn push(&mut self, s: &RigState) {
-        self.time_s.push(s.time_s);
-        self.input_rad.push(s.input_rad);
-        self.output_rad.push(s.output_rad);
-        self.tension_1_n.push(s.ropes[0].tension_n);
-        self.tension_2_n.push(s.ropes[1].tension_n);
+        self.time_s.push(s.time_s());
+        self.input_rad.push(s.input_rad());
+        self.output_rad.push(s.output_rad());
+        self.tension_1_n.push(s.tension_n(0));
+        self.tension_2_n.push(s.tension_n(1));
     }
 }
 

@@ -91,7 +91,7 @@ pub fn simulate_sweep(
         tension_in_2_n: Vec::with_capacity(n),
     };
     let push = |out: &mut SimSweep, st: &longreach_drive::RigState| {
-        out.output_rad.push(st.output_rad);
+        out.output_rad.push(st.output_rad());
         out.tension_1_n.push(st.tension_n(0));
         out.tension_2_n.push(st.tension_n(1));
         out.tension_in_1_n.push(st.tension_in_n(0));
@@ -100,7 +100,6 @@ pub fn simulate_sweep(
     if n == 0 {
         return Ok(out);
     }
-    st.input_rad = input_rad[0];
     push(&mut out, &st);
     for w in input_rad.windows(2) {
         for k in 1..=substeps {

@@ -21,25 +21,60 @@ use super::pair::CompiledPair;
 use super::servo::ServoRow;
 use super::spec::Tensioner;
 
-/// What [`block`] found.
+/// The ropes of an ideal pair at a trial state ([`evaluate`]).
 #[derive(Debug, Clone, Copy)]
-pub(crate) enum IdealBlock {
-    /// Contributions added; the pieces of the rope law at the trial state.
-    Done {
-        /// Tensions `[+, -]` (N per rope), stretches `[+, -]` as strains, pieces.
-        f: [f64; 2],
-        e: [f64; 2],
-        pieces: [Piece; 2],
-    },
-    /// Both ropes slack under a constant-force tensioner: the carriage was moved to
-    /// take up the slack; redo the iteration.
-    Retry,
+pub(crate) struct IdealEval {
+    /// Tensions `[+, -]`, N per rope.
+    pub f: [f64; 2],
+    /// Stiffnesses `[+, -]`, N/m.
+    pub k: [f64; 2],
+    /// Strains `[+, -]`.
+    pub e: [f64; 2],
+    /// Pieces of the rope law.
+    pub pieces: [Piece; 2],
+}
+
+/// Tensions, stiffnesses and pieces of both ropes at the trial state (routed joint
+/// position `rq = R[p] . q1`, motor `th1`, tensioner `x1`); `None` when both ropes are
+/// slack under a constant-force tensioner: the carriage was then moved to take up the
+/// slack (redo the iteration).
+#[inline]
+pub(crate) fn evaluate(
+    pair: &CompiledPair,
+    prep: &[PreparedStep; 2],
+    rq: f64,
+    th1: f64,
+    x1: &mut f64,
+) -> Option<IdealEval> {
+    let s = &pair.spec;
+    let rm = s.motor_radius_m;
+    let u = rm * th1 - rq;
+    let x = *x1;
+    let il = pair.inv_length;
+    let (ep, em) = ((x + u) * il, (x - u) * il);
+    let (fp, kp, pp) = pair.stepper.tension_piece(&prep[0], ep);
+    let (fm, km, pm) = pair.stepper.tension_piece(&prep[1], em);
+    let (kp, km) = (kp * il, km * il);
+    if s.tensioner == Tensioner::ConstantForce && kp + km == 0.0 {
+        // Both ropes slack: the carriage takes up the slack first.
+        let lp = prep[0].slack_strain() * s.length_m - u;
+        let lm = prep[1].slack_strain() * s.length_m + u;
+        *x1 = lp.min(lm) + 1e-12 * s.length_m;
+        return None;
+    }
+    Some(IdealEval {
+        f: [fp, fm],
+        k: [kp, km],
+        e: [ep, em],
+        pieces: [pp, pm],
+    })
 }
 
 /// Adds the pair's contributions at the trial state (joints `q1`, motor `th1`,
 /// tensioner `x1`) to the joint matrix `kq` (`n x n`, row-major) and the right side
 /// `rhs` (`-r_q`), and keeps its border in `local`; `servo` is the motor's row
-/// ([`super::servo::servo_row`]), `None` for a kinematic motor.
+/// ([`super::servo::servo_row`]), `None` for a kinematic motor. False when the carriage
+/// had to take up slack ([`evaluate`]): redo the iteration.
 #[inline]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn block(
@@ -53,25 +88,16 @@ pub(crate) fn block(
     kq: &mut [f64],
     n: usize,
     local: &mut [f64; 8],
-) -> IdealBlock {
+) -> bool {
+    let rq: f64 = pair.nz.iter().map(|&k| pair.row[k] * q1[k]).sum();
+    let Some(ev) = evaluate(pair, prep, rq, th1, x1) else {
+        return false;
+    };
     let s = &pair.spec;
     let rm = s.motor_radius_m;
-    let rq: f64 = pair.nz.iter().map(|&k| pair.row[k] * q1[k]).sum();
-    let u = rm * th1 - rq;
-    let x = *x1;
-    let il = pair.inv_length;
-    let (ep, em) = ((x + u) * il, (x - u) * il);
-    let (fp, kp, pp) = pair.stepper.tension_piece(&prep[0], ep);
-    let (fm, km, pm) = pair.stepper.tension_piece(&prep[1], em);
-    let (kp, km) = (kp * il, km * il);
+    let [fp, fm] = ev.f;
+    let [kp, km] = ev.k;
     let cf = s.tensioner == Tensioner::ConstantForce;
-    if cf && kp + km == 0.0 {
-        // Both ropes slack: the carriage takes up the slack first.
-        let lp = prep[0].slack_strain() * s.length_m - u;
-        let lm = prep[1].slack_strain() * s.length_m + u;
-        *x1 = lp.min(lm) + 1e-12 * s.length_m;
-        return IdealBlock::Retry;
-    }
     let nn = pair.n;
     let phi = nn * (fp - fm);
     let ku = nn * (kp + km);
@@ -113,11 +139,7 @@ pub(crate) fn block(
         }
     }
     *local = [b11, b12, b21, b22, w[0], w[1], r0, r1];
-    IdealBlock::Done {
-        f: [fp, fm],
-        e: [ep, em],
-        pieces: [pp, pm],
-    }
+    true
 }
 
 /// The local update `(d theta, d x)` of the pair after the joint update `dq`, from the

@@ -48,7 +48,7 @@
 //!   the joints ([`JointLoad`]), and the implicit step ([`Drivetrain::step`]) in named
 //!   stages.
 
-mod ideal;
+pub(crate) mod ideal;
 pub mod pair;
 pub mod relay;
 mod servo;
@@ -57,7 +57,7 @@ pub mod state;
 pub mod step;
 
 pub use pair::{CompiledPair, PairAtRest, StaticPair};
-pub use relay::{CompiledRelays, RelayFriction, RelayState, RelayTorque};
+pub use relay::{CompiledRelays, RelayFriction, RelayRule, RelayState, RelayTorque};
 pub use spec::{MotorMode, MotorSpec, PairSpec, Relay, RoutingMatrix, Tensioner};
 pub use state::PlantState;
 pub use step::{

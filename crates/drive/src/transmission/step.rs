@@ -32,7 +32,7 @@ use std::sync::Arc;
 
 use longreach_rope::PreparedStep;
 
-use super::ideal::{self, IdealBlock};
+use super::ideal;
 use super::pair::CompiledPair;
 use super::relay::assembly::{self as relay, Assembly, Local, MotorRow, RelayScratch};
 use super::relay::factor::{lu_in_place, lu_solve};
@@ -339,6 +339,7 @@ impl Drivetrain {
         let h = self.dt_s;
         let t1 = st.time_s + h;
         let (two_h, four_h2) = (2.0 / h, 4.0 / (h * h));
+        self.check_state(st)?;
         self.begin(st);
         self.predict(st);
         let tol = self.newton_tolerance;
@@ -512,6 +513,53 @@ impl Drivetrain {
         Ok(())
     }
 
+    /// Refuses a state made for another plant (other joints, pairs, relays or effect
+    /// states), which would otherwise be misread.
+    pub fn check_state<S>(&self, st: &PlantState<S>) -> Result<(), DriveError> {
+        let np = self.pairs.len();
+        let shapes = st.q_rad.len() == self.ndofs
+            && st.qd_rad_s.len() == self.ndofs
+            && st.qdd_rad_s2.len() == self.ndofs
+            && st.motor_rad.len() == np
+            && st.ropes.len() == np
+            && st.relays.len() == np
+            && st.solver.relay.len() == np
+            && st.effect_state.len()
+                == self
+                    .loads
+                    .iter()
+                    .map(|l| l.force.state_len())
+                    .sum::<usize>()
+            && self
+                .pairs
+                .iter()
+                .zip(&st.relays)
+                .all(|(p, r)| match &p.relays {
+                    None => r.spans.is_empty(),
+                    Some(c) => {
+                        r.spans.len() == c.spans()
+                            && r.angle_rad.len() == c.relays()
+                            && r.rate_rad_s.len() == c.relays()
+                            && r.accel_rad_s2.len() == c.relays()
+                    }
+                });
+        if shapes {
+            Ok(())
+        } else {
+            Err(DriveError::BadParameter {
+                field: "state".into(),
+                value: f64::NAN,
+                reason: format!(
+                    "this state was made for another plant (this one has {} joint(s), {np} \
+                     pair(s), {} with relay friction): start from this plant's own \
+                     rest_state() (rig) or initial_state() (arm)",
+                    self.ndofs,
+                    self.pairs.iter().filter(|p| p.relays.is_some()).count()
+                ),
+            })
+        }
+    }
+
     /// Stage 1: every rope's (span's) step prepared from the state, the relays
     /// predicted.
     fn begin<S>(&self, st: &mut PlantState<S>) {
@@ -671,7 +719,7 @@ impl Drivetrain {
                 }
                 continue;
             }
-            match ideal::block(
+            if !ideal::block(
                 pair,
                 &sv.prep[p],
                 &sv.q1,
@@ -683,8 +731,7 @@ impl Drivetrain {
                 n,
                 &mut sv.local[p],
             ) {
-                IdealBlock::Done { .. } => {}
-                IdealBlock::Retry => retry = true,
+                retry = true;
             }
         }
         if retry {

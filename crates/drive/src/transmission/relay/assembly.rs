@@ -204,15 +204,13 @@ pub(crate) fn relay_residual(
 ) -> (f64, RelayTorque) {
     let (m, ns) = (c.relays(), c.spans());
     let h = inp.h;
-    let (two_h, four_h2) = (2.0 / h, 4.0 / (h * h));
     let r = c.radius_m[rl];
     let (fa, fb) = (fs[side * ns + rl], fs[side * ns + rl + 1]);
     let psi0 = inp.state.angle_rad[rl][side];
     let w0 = inp.state.rate_rad_s[rl][side];
     let a0 = inp.state.accel_rad_s2[rl][side];
     let dpsi = psi1[side * m + rl] - psi0;
-    let w1 = two_h * dpsi - w0;
-    let a1 = four_h2 * dpsi - 2.0 * two_h * w0 - a0;
+    let (w1, a1) = c.rule.end_rates(h, dpsi, w0, a0);
     let t = c.friction.torque_n_m(r, fa + fb, w1);
     (
         c.friction.inertia_kg_m2 * a1 + t.torque_n_m + r * (fa - fb),
@@ -249,11 +247,11 @@ pub(crate) fn relay_slopes(
     let r = c.radius_m[rl];
     let ts = t.d_tension_sum_m;
     let (wa, wb) = (r + ts, -r + ts);
+    let (dwdp, dadp) = c.rule.slopes(h);
     RelaySlopes {
         wa,
         wb,
-        diag: 4.0 / (h * h) * c.friction.inertia_kg_m2 + 2.0 / h * t.d_rate_n_m_s + wa * ka * r
-            - wb * kb * r,
+        diag: dadp * c.friction.inertia_kg_m2 + dwdp * t.d_rate_n_m_s + wa * ka * r - wb * kb * r,
         sub: if rl > 0 {
             -wa * ka * c.radius_m[rl - 1]
         } else {
@@ -564,15 +562,27 @@ pub(crate) fn commit(
             stepper.commit_with_tension(&sc.prep[k], &mut state.spans[i][side], sc.k[k], sc.f[k]);
         }
     }
-    let (two_h, four_h2) = (2.0 / h, 4.0 / (h * h));
+    // A massless relay (no inertia, hence no friction: `RelayFriction::validate`) is
+    // algebraic: its angle only balances its spans, and the trapezoidal rate of an
+    // algebraic unknown would ring at the step frequency; it keeps the step's mean rate.
+    let massless = c.friction.inertia_kg_m2 == 0.0;
     for rl in 0..m {
         for side in 0..2 {
             let psi1 = sc.psi1[side * m + rl];
             let dpsi = psi1 - state.angle_rad[rl][side];
-            let w0 = state.rate_rad_s[rl][side];
-            let a1 = four_h2 * dpsi - 2.0 * two_h * w0 - state.accel_rad_s2[rl][side];
-            state.rate_rad_s[rl][side] = two_h * dpsi - w0;
-            state.accel_rad_s2[rl][side] = a1;
+            if massless {
+                state.rate_rad_s[rl][side] = dpsi / h;
+                state.accel_rad_s2[rl][side] = 0.0;
+            } else {
+                let (w1, a1) = c.rule.end_rates(
+                    h,
+                    dpsi,
+                    state.rate_rad_s[rl][side],
+                    state.accel_rad_s2[rl][side],
+                );
+                state.rate_rad_s[rl][side] = w1;
+                state.accel_rad_s2[rl][side] = a1;
+            }
             state.angle_rad[rl][side] = psi1;
         }
     }
@@ -597,9 +607,12 @@ pub(crate) fn begin_step(
     sc.damping.fill(1.0);
     for rl in 0..m {
         for side in 0..2 {
-            sc.psi1[side * m + rl] = state.angle_rad[rl][side]
-                + h * state.rate_rad_s[rl][side]
-                + 0.5 * h * h * state.accel_rad_s2[rl][side];
+            sc.psi1[side * m + rl] = c.rule.predict(
+                h,
+                state.angle_rad[rl][side],
+                state.rate_rad_s[rl][side],
+                state.accel_rad_s2[rl][side],
+            );
         }
     }
 }

@@ -4,6 +4,9 @@
 
 use super::iz_psi;
 
+/// Smallest pivot of a relay chain relative to its row's diagonal ([`LocalFactor`]).
+const PIVOT_FLOOR: f64 = 1e-12;
+
 /// The factor of a pair's local block `K_zz`, kept for the chord iterations. The block
 /// is a chain per rope (each relay row couples to its neighbours along the rope) whose
 /// first relay also couples to the two border unknowns, motor angle and tensioner
@@ -68,7 +71,18 @@ impl LocalFactor {
                 self.inv[base + l] = 1.0 / piv;
                 let f = self.sup[base + l - 1] / piv;
                 self.mult[base + l] = f;
-                self.dia[base + l - 1] -= f * self.sub[base + l];
+                let before = self.dia[base + l - 1];
+                let after = before - f * self.sub[base + l];
+                // A run of relays between two slack spans, with neither inertia nor
+                // friction, floats: its rows cancel to round-off. Such a pivot is held
+                // at a millionth of a millionth of the row's own diagonal (the rope
+                // segment then stays where the predictor put it); a regular chain's
+                // pivots stay within a few orders of its diagonal and never meet it.
+                self.dia[base + l - 1] = if after.abs() < PIVOT_FLOOR * before.abs() {
+                    PIVOT_FLOOR * before.abs()
+                } else {
+                    after
+                };
             }
             if m > 0 {
                 let piv = self.dia[base];

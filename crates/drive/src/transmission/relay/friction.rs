@@ -48,7 +48,17 @@ impl RelayFriction {
                 reason: "must be < 1 (the pulley would lock; typical bearings 0.001-0.05)".into(),
             });
         }
-        non_negative("relay_friction.inertia_kg_m2", self.inertia_kg_m2)?;
+        let j = non_negative("relay_friction.inertia_kg_m2", self.inertia_kg_m2)?;
+        if c > 0.0 && j == 0.0 {
+            return Err(DriveError::BadParameter {
+                field: "relay_friction.inertia_kg_m2".into(),
+                value: j,
+                reason: "must be > 0 when the coefficient is > 0: a pulley's friction \
+                         depends on its rate, which a massless pulley does not have (a 25 mm \
+                         aluminium pulley: ~2e-5 kg*m^2)"
+                    .into(),
+            });
+        }
         positive("relay_friction.slip_rate_rad_s", self.slip_rate_rad_s)?;
         Ok(())
     }
