@@ -14,6 +14,7 @@ use crate::transmission::{
     Tensioner,
 };
 use crate::{load_urdf, DrivenArm};
+use longreach_drive::effects::{Applied, Site};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -397,19 +398,20 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
         joint_radius[j] = Some(sec.joint_radius_m);
     }
     let mut pairs = Vec::new();
+    let mut joint_effects = Vec::new();
     let mut commands = vec![Command::Hold; n];
     for (i, (sec, &j)) in sections.iter().zip(&joints).enumerate() {
         let f = |k: &str| format!("transmission.{i}.{k}");
-        let (rope_name, params, mut law) =
-            resolve_rope(text, file, &f("rope"), &sec.rope, sec.law)?;
-        let mut effects = Vec::new();
-        // Relay friction from the registry form `effects = [{ name = "relay_friction",
-        // params = [coefficient, inertia_kg_m2] }]` (parameters matched by name).
-        let mut registry_relay: Option<longreach_drive::RelayFriction> = None;
+        let (rope_name, params, law) = resolve_rope(text, file, &f("rope"), &sec.rope, sec.law)?;
+        // Registered effects of this transmission, `effects = [{ name, params = [...] }]`
+        // (parameters in the effect's order; none: its defaults), applied at their
+        // sites once the pair is built: the rope law and the pair, or the driven joint.
+        let mut applied = Vec::new();
         for (e_i, e) in sec.effects.iter().enumerate() {
+            let field = f(&format!("effects.{e_i}"));
             let eff = longreach_drive::effects::find(&e.name).ok_or_else(|| {
                 ferr(
-                    &f(&format!("effects.{e_i}")),
+                    &field,
                     format!("unknown effect '{}'", e.name),
                     &format!(
                         "use one of the registered effects: {}",
@@ -422,44 +424,22 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
             } else {
                 e.params.clone()
             };
-            eff.apply(&values, &mut law, None).map_err(|err| {
+            let a = Applied::new(eff, values).map_err(|err| {
                 ferr(
-                    &f(&format!("effects.{e_i}")),
+                    &field,
                     err.to_string(),
                     "give one value per parameter, within its bounds",
                 )
             })?;
-            if e.name == "relay_friction" {
-                let named = |name: &str| {
-                    eff.params()
-                        .iter()
-                        .position(|p| p.name == name)
-                        .and_then(|k| values.get(k).copied())
-                };
-                let (Some(coefficient), Some(inertia_kg_m2)) =
-                    (named("coefficient"), named("inertia_kg_m2"))
-                else {
-                    return Err(ferr(
-                        &f(&format!("effects.{e_i}")),
-                        "the registry's relay_friction has no coefficient / inertia_kg_m2 parameter".into(),
-                        "use the table form: relay_friction = { coefficient = 0.01, inertia_kg_m2 = 1e-4 }",
-                    ));
-                };
-                if sec.relay_friction.is_some() {
-                    return Err(ferr(
-                        &f(&format!("effects.{e_i}")),
-                        "relay friction given twice (as an effect and as relay_friction = {...})"
-                            .into(),
-                        "keep one of the two",
-                    ));
-                }
-                registry_relay = Some(longreach_drive::RelayFriction {
-                    coefficient,
-                    inertia_kg_m2,
-                    slip_rate_rad_s: longreach_drive::RelayFriction::DEFAULT_SLIP_RATE_RAD_S,
-                });
+            if eff.site() == Site::RelayPulley && sec.relay_friction.is_some() {
+                return Err(ferr(
+                    &field,
+                    "relay friction given twice (as an effect and as relay_friction = {...})"
+                        .into(),
+                    "keep one of the two",
+                ));
             }
-            effects.push(e.name.clone());
+            applied.push((field, a));
         }
         let route = match &sec.route {
             Some(r) => {
@@ -527,7 +507,7 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
             }
         };
         let relay_friction = match &sec.relay_friction {
-            None => registry_relay,
+            None => None,
             Some(r) => {
                 let rf = longreach_drive::RelayFriction {
                     coefficient: r.coefficient,
@@ -560,7 +540,7 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
                 Some(rf)
             }
         };
-        pairs.push(PairSpec {
+        let mut pair = PairSpec {
             joint: j,
             rope_name,
             rope: params,
@@ -579,14 +559,28 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
                 damping_n_m_s: m.damping_n_m_s,
                 mode,
             },
-            effects,
+            effects: Vec::new(),
             relay_friction,
-        });
+        };
+        for (field, a) in applied {
+            a.apply_to_pair(&mut pair).map_err(|err| {
+                ferr(
+                    &field,
+                    err.to_string(),
+                    "give one value per parameter, within its bounds",
+                )
+            })?;
+            pair.effects.push(a.effect.name().to_string());
+            if a.effect.site() == Site::Joint {
+                joint_effects.push((j, a));
+            }
+        }
+        pairs.push(pair);
         if let Some(c) = &sec.command {
             commands[j] = parse_command(c, &f("command"), base, &ferr)?;
         }
     }
-    let arm = DrivenArm::new(spec, pairs, commands, initial, s.dt_s)
+    let arm = DrivenArm::with_joint_effects(spec, pairs, joint_effects, commands, initial, s.dt_s)
         .map_err(|e| ferr("transmission", e.to_string(), "correct the named field"))?;
     Ok(ArmScenario {
         arm,

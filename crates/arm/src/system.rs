@@ -28,13 +28,11 @@
 //! joints and motors, the exact-hold step for each rope, and Newton's method on the
 //! end-of-step state (see [`longreach_drive::transmission::step`]).
 
-use std::sync::Arc;
-
 use crate::command::Command;
 use crate::error::ArmError;
 use crate::fast::{FastDynamics, Kin};
 use crate::spec::ArmSpec;
-use longreach_drive::effects::JointForce;
+use longreach_drive::effects::{self, Applied, JointFriction};
 use longreach_drive::transmission::{
     CompiledPair, Drivetrain, JointLoad, JointSide, MotorInputs, PairSpec, PlantState,
     RoutingMatrix,
@@ -150,15 +148,17 @@ impl DrivenArm {
         initial_q_rad: Vec<f64>,
         dt_s: f64,
     ) -> Result<Self, ArmError> {
-        Self::with_loads(spec, pairs, Vec::new(), commands, initial_q_rad, dt_s)
+        Self::with_joint_effects(spec, pairs, Vec::new(), commands, initial_q_rad, dt_s)
     }
 
-    /// [`Self::new`] with passive torques of effects at the joints (`loads`: joint
-    /// index, effect name, compiled torque law).
-    pub fn with_loads(
+    /// [`Self::new`] with registered effects at joints (`joint_effects`: joint index and
+    /// the effect with its values; [`longreach_drive::effects`]): each adds its passive
+    /// torque at its joint. Effects at the pairs' sites (rope law, relays) are applied
+    /// to the [`PairSpec`]s before ([`longreach_drive::effects::Applied::apply_to_pair`]).
+    pub fn with_joint_effects(
         spec: ArmSpec,
         pairs: Vec<PairSpec>,
-        loads: Vec<(usize, &'static str, Arc<dyn JointForce>)>,
+        joint_effects: Vec<(usize, Applied)>,
         commands: Vec<Command>,
         initial_q_rad: Vec<f64>,
         dt_s: f64,
@@ -220,14 +220,48 @@ impl DrivenArm {
             }
             v
         };
-        let loads = loads
-            .into_iter()
-            .map(|(joint, effect, force)| JointLoad {
+        // The URDF's `<dynamics friction>` is the dry friction of that joint's bearing:
+        // a `joint_friction` effect there, unless the caller gives that joint its own.
+        let mut joint_effects = joint_effects;
+        for (j, joint) in spec.joints.iter().enumerate() {
+            let given = joint_effects
+                .iter()
+                .any(|(k, a)| *k == j && effects::same(a.effect, &JointFriction));
+            if joint.friction_n_m > 0.0 && !given {
+                let a = JointFriction::dry(joint.friction_n_m).map_err(|e| {
+                    bad(
+                        &format!("joint {} <dynamics friction>", joint.name),
+                        e.to_string(),
+                    )
+                })?;
+                joint_effects.push((j, a));
+            }
+        }
+        let mut loads = Vec::new();
+        for (joint, a) in joint_effects {
+            let field = format!(
+                "joint {} effect {}",
+                spec.joints.get(joint).map_or("?", |j| j.name.as_str()),
+                a.effect.name()
+            );
+            let force = a
+                .joint_force()
+                .map_err(|e| bad(&field, e.to_string()))?
+                .ok_or_else(|| {
+                    bad(
+                        &field,
+                        format!(
+                            "acts at the {} site, not at a joint: give it to a transmission",
+                            a.effect.site().as_str()
+                        ),
+                    )
+                })?;
+            loads.push(JointLoad {
                 joint,
-                effect,
+                effect: a.effect,
                 force,
-            })
-            .collect();
+            });
+        }
         let drive = Drivetrain::new(compiled, loads, n, dt_s, None)?;
         Ok(Self {
             dynamics: FastDynamics::new(&spec),

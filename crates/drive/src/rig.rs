@@ -54,11 +54,9 @@
 //! on the piece it was linearised on (usually after one update), with a bracketed
 //! fallback when the pieces cycle.
 
-use std::sync::Arc;
-
 use longreach_rope::{Piece, PreparedStep, RopeLaw, RopeParams, RopeState};
 
-use crate::effects::JointForce;
+use crate::effects::Applied;
 use crate::error::{non_negative, positive, DriveError};
 use crate::transmission::ideal;
 use crate::transmission::pair::StaticPair;
@@ -279,16 +277,32 @@ impl RigState {
 impl RigModel {
     /// Compiles `spec` for steps of `dt_s`.
     pub fn new(spec: RigSpec, dt_s: f64) -> Result<Self, DriveError> {
-        Self::with_loads(spec, Vec::new(), dt_s)
+        Self::with_effects(spec, &[], dt_s)
     }
 
-    /// [`Self::new`] with passive torques of effects at the output shaft (effect name,
-    /// compiled torque law).
-    pub fn with_loads(
-        spec: RigSpec,
-        loads: Vec<(&'static str, Arc<dyn JointForce>)>,
+    /// Compiles `spec` with registered effects at their sites ([`crate::effects`]): a
+    /// rope-law or pair effect changes the rig's rope pair (and the returned
+    /// [`Self::spec`] shows the law and relay friction it made), a joint effect acts at
+    /// the output shaft.
+    pub fn with_effects(
+        mut spec: RigSpec,
+        effects: &[Applied],
         dt_s: f64,
     ) -> Result<Self, DriveError> {
+        let mut pair_spec = spec.pair_spec();
+        let mut loads = Vec::new();
+        for a in effects {
+            a.apply_to_pair(&mut pair_spec)?;
+            if let Some(force) = a.joint_force()? {
+                loads.push(JointLoad {
+                    joint: 0,
+                    effect: a.effect,
+                    force,
+                });
+            }
+        }
+        spec.law = pair_spec.law.clone();
+        spec.relay_friction = pair_spec.relay_friction;
         spec.validate()?;
         if !(dt_s.is_finite() && dt_s > 0.0 && dt_s <= 0.05) {
             return Err(DriveError::BadParameter {
@@ -298,16 +312,8 @@ impl RigModel {
                     .into(),
             });
         }
-        let pair = CompiledPair::new(spec.pair_spec(), 1, dt_s, "rig")?
-            .with_relay_rule(RelayRule::BackwardEuler);
-        let loads: Vec<JointLoad> = loads
-            .into_iter()
-            .map(|(effect, force)| JointLoad {
-                joint: 0,
-                effect,
-                force,
-            })
-            .collect();
+        let pair =
+            CompiledPair::new(pair_spec, 1, dt_s, "rig")?.with_relay_rule(RelayRule::BackwardEuler);
         let fast = pair.relays.is_none() && loads.is_empty();
         let drive = Drivetrain::new(vec![pair], loads, 1, dt_s, None)?;
         Ok(Self {
@@ -651,13 +657,10 @@ impl RigModel {
 impl RigSpec {
     /// The rig's rope pair for the transmission core: the input pulley as a kinematic
     /// motor of radius `r1`, the output pulley as the joint pulley `r2` of joint 0, the
-    /// relay pulleys fixed to the base (equal spans).
+    /// relay pulleys fixed to the base (equal spans; ideal, hence without effect,
+    /// unless the pair has relay friction).
     pub fn pair_spec(&self) -> PairSpec {
-        let relays = if self.relay_friction.is_some() {
-            self.relay_pulleys as usize
-        } else {
-            0
-        };
+        let relays = self.relay_pulleys as usize;
         PairSpec {
             joint: 0,
             rope_name: self.rope_name.clone(),

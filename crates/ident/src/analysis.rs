@@ -156,9 +156,15 @@ impl<'a> Prepared<'a> {
                 if let Some(c) = damping {
                     spec.output_damping_n_m_s = c;
                 }
-                model.apply_to_rig(r, &mut spec)?;
-                sim::simulate_sweep(spec, sim::drive_input(run), run.dt_s(), self.substeps)
-                    .map(|s| s.output_rad)
+                let effects = model.plant_effects_for_run(r)?;
+                sim::simulate_sweep(
+                    spec,
+                    &effects,
+                    sim::drive_input(run),
+                    run.dt_s(),
+                    self.substeps,
+                )
+                .map(|s| s.output_rad)
             }
             DatasetKind::Relaxation(rx) => {
                 sim::simulate_relaxation(&law, rx.specimen.strain, &rx.runs[r].time_s)

@@ -2,7 +2,7 @@
 //! per run) and a list of effects from the registry ([`longreach_drive::effects`]),
 //! read from and written to TOML model files (format: `docs/models.md`).
 
-use longreach_drive::effects::{self, DataKind, Effect};
+use longreach_drive::effects::{self, Applied, DataKind, Effect, Site, Target};
 use longreach_rope::{Catalog, LawKind, RopeLaw, RopeParams};
 use longreach_scenario::spec::field_error;
 use longreach_scenario::ScenarioError;
@@ -280,28 +280,25 @@ impl Model {
         for u in &self.effects {
             let vals: Vec<f64> = u.params.iter().map(|p| p.value_for(run)).collect();
             u.effect
-                .apply(&vals, &mut law, None)
+                .on_law(&vals, &mut law)
                 .map_err(|e| format!("effect {}: {e}", u.effect.name()))?;
         }
         law.validate().map_err(|e| e.to_string())?;
         Ok((law, damping))
     }
 
-    /// Applies the model's effects that act on the transmission (e.g. `relay_friction`)
-    /// to the drive rig of run `run`; effects on the rope law alone leave it unchanged.
-    pub fn apply_to_rig(
-        &self,
-        run: usize,
-        rig: &mut longreach_drive::RigSpec,
-    ) -> Result<(), String> {
-        let mut scratch = self.law.clone();
-        for u in &self.effects {
-            let vals: Vec<f64> = u.params.iter().map(|p| p.value_for(run)).collect();
-            u.effect
-                .apply(&vals, &mut scratch, Some(rig))
-                .map_err(|e| format!("effect {}: {e}", u.effect.name()))?;
-        }
-        Ok(())
+    /// The model's effects at sites other than the rope law (relay pulleys, joints),
+    /// with their values for run `run`, for the plant to apply when it is built (the
+    /// rope-law effects are in [`Self::law_for_run`]).
+    pub fn plant_effects_for_run(&self, run: usize) -> Result<Vec<Applied>, String> {
+        self.effects
+            .iter()
+            .filter(|u| u.effect.site() != Site::RopeLaw)
+            .map(|u| {
+                let vals: Vec<f64> = u.params.iter().map(|p| p.value_for(run)).collect();
+                Applied::new(u.effect, vals).map_err(|e| format!("effect {}: {e}", u.effect.name()))
+            })
+            .collect()
     }
 
     /// The model plus `effect` with its default parameters, all fitted.
@@ -320,7 +317,7 @@ impl Model {
                     lower: p.lower,
                     upper: p.upper,
                     log_scale: p.log_scale,
-                    fit: true,
+                    fit: p.fitted,
                     per_run: false,
                 })
                 .collect(),
@@ -330,12 +327,14 @@ impl Model {
 
     /// True when the model already holds `effect` (in its list or in its law).
     pub fn has_effect(&self, effect: &dyn Effect) -> bool {
-        self.effects
-            .iter()
-            .any(|u| u.effect.name() == effect.name())
-            || self
-                .law_for_run(0)
-                .is_ok_and(|(l, _)| effect.present_in(&l, None))
+        self.effects.iter().any(|u| effects::same(u.effect, effect))
+            || self.law_for_run(0).is_ok_and(|(law, _)| {
+                effect.present_in(&Target {
+                    law: &law,
+                    pair: None,
+                    joint_effects: &[],
+                })
+            })
     }
 
     /// Named values of every parameter (per-run ones as `name[run]`), sorted by name.

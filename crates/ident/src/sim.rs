@@ -8,6 +8,7 @@
 //! the exact-hold rope stepper otherwise. Cyclic: the rope stepper on the measured
 //! strain.
 
+use longreach_drive::effects::Applied;
 use longreach_drive::{DriveError, RigModel, RigSpec as DriveRig, Tensioner as DriveTensioner};
 use longreach_rope::{relaxation_tension_n, RopeLaw, RopeStepper};
 
@@ -72,15 +73,17 @@ pub fn drive_rig(rig: &RigSpec, law: RopeLaw, mean_tension_n: f64) -> DriveRig {
     }
 }
 
-/// Simulates `spec` on the input series `input_rad` sampled every `dt_s`.
+/// Simulates `spec` with the plant effects `effects` (relay pulleys, output shaft) on
+/// the input series `input_rad` sampled every `dt_s`.
 pub fn simulate_sweep(
     spec: DriveRig,
+    effects: &[Applied],
     input_rad: &[f64],
     dt_s: f64,
     substeps: usize,
 ) -> Result<SimSweep, DriveError> {
     let substeps = substeps.max(1);
-    let model = RigModel::new(spec, dt_s / substeps as f64)?;
+    let model = RigModel::with_effects(spec, effects, dt_s / substeps as f64)?;
     let mut st = model.rest_state();
     let n = input_rad.len();
     let mut out = SimSweep {
@@ -119,7 +122,7 @@ pub fn simulate_sweep_run(
     substeps: usize,
 ) -> Result<SimSweep, DriveError> {
     let spec = drive_rig(rig, law, run.mean_tension_n);
-    simulate_sweep(spec, drive_input(run), run.dt_s(), substeps)
+    simulate_sweep(spec, &[], drive_input(run), run.dt_s(), substeps)
 }
 
 /// True when `law` is exactly the paper's four-element model (eq. 6 applies).

@@ -104,8 +104,8 @@ pub fn sweep(model: &Model, opt: &SweepOptions) -> Result<SweepDataset, String> 
         if let Some(c) = damping {
             spec.output_damping_n_m_s = c;
         }
-        model.apply_to_rig(r, &mut spec)?;
-        let s = sim::simulate_sweep(spec, &command, opt.dt_s, opt.substeps)
+        let effects = model.plant_effects_for_run(r)?;
+        let s = sim::simulate_sweep(spec, &effects, &command, opt.dt_s, opt.substeps)
             .map_err(|e| e.to_string())?;
         let noise = |ch: u64, x: &[f64]| -> Result<Vec<f64>, String> {
             let mut g = GaussianNoise::new(

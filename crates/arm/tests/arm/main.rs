@@ -6,6 +6,7 @@
 mod common;
 mod driven;
 mod dynamics;
+mod joint_friction;
 mod multibody;
 mod payload;
 mod rapier_cross_check;

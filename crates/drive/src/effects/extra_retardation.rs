@@ -2,8 +2,8 @@
 
 use longreach_rope::{KelvinElement, RopeLaw, MAX_KELVIN};
 
-use super::{check, DataKind, Effect, EffectParam};
-use crate::{DriveError, RigSpec};
+use super::{check, DataKind, Effect, EffectParam, Site, Target};
+use crate::DriveError;
 
 /// Another spring || dashpot element in series (a second retardation time).
 #[derive(Debug)]
@@ -17,6 +17,7 @@ const PARAMS: &[EffectParam] = &[
         lower: 1e4,
         upper: 1e8,
         log_scale: true,
+        fitted: true,
     },
     EffectParam {
         name: "c_n_s",
@@ -25,6 +26,7 @@ const PARAMS: &[EffectParam] = &[
         lower: 1e2,
         upper: 1e9,
         log_scale: true,
+        fitted: true,
     },
 ];
 
@@ -45,15 +47,14 @@ impl Effect for ExtraRetardation {
     fn applies_to(&self, _kind: DataKind) -> bool {
         true
     }
-    fn present_in(&self, law: &RopeLaw, _rig: Option<&RigSpec>) -> bool {
+    fn site(&self) -> Site {
+        Site::RopeLaw
+    }
+    fn present_in(&self, target: &Target<'_>) -> bool {
+        let law = target.law;
         law.kelvin.len() >= 2
     }
-    fn apply(
-        &self,
-        values: &[f64],
-        law: &mut RopeLaw,
-        _rig: Option<&mut RigSpec>,
-    ) -> Result<(), DriveError> {
+    fn on_law(&self, values: &[f64], law: &mut RopeLaw) -> Result<(), DriveError> {
         check(self, values)?;
         if law.kelvin.len() >= MAX_KELVIN {
             return Err(DriveError::BadParameter {

@@ -2,8 +2,8 @@
 
 use longreach_rope::RopeLaw;
 
-use super::{check, DataKind, Effect, EffectParam};
-use crate::{DriveError, RigSpec};
+use super::{check, DataKind, Effect, EffectParam, Site, Target};
+use crate::DriveError;
 
 /// A dashpot `c1` parallel to the head spring `k1`.
 #[derive(Debug)]
@@ -16,6 +16,7 @@ const PARAMS: &[EffectParam] = &[EffectParam {
     lower: 1.0,
     upper: 1e5,
     log_scale: true,
+    fitted: true,
 }];
 
 impl Effect for InternalDamping {
@@ -36,15 +37,14 @@ impl Effect for InternalDamping {
     fn applies_to(&self, kind: DataKind) -> bool {
         kind != DataKind::Relaxation
     }
-    fn present_in(&self, law: &RopeLaw, _rig: Option<&RigSpec>) -> bool {
+    fn site(&self) -> Site {
+        Site::RopeLaw
+    }
+    fn present_in(&self, target: &Target<'_>) -> bool {
+        let law = target.law;
         law.c1_n_s > 0.0
     }
-    fn apply(
-        &self,
-        values: &[f64],
-        law: &mut RopeLaw,
-        _rig: Option<&mut RigSpec>,
-    ) -> Result<(), DriveError> {
+    fn on_law(&self, values: &[f64], law: &mut RopeLaw) -> Result<(), DriveError> {
         check(self, values)?;
         law.c1_n_s = values[0];
         Ok(law.validate()?)

@@ -2,57 +2,86 @@
 //!
 //! An effect is a small object implementing [`Effect`]: a name, a paragraph of physics,
 //! named parameters with units, bounds and defaults ([`EffectParam`]), the kinds of
-//! measurement that can reveal it ([`DataKind`]), and [`Effect::apply`], which adds the
-//! effect to a rope law (and, when it acts on the transmission, to a rig). Every effect
-//! lives in its own file; [`REGISTRY`] lists them, one line each. `longreach diagnose`
-//! iterates the registry: for every effect the model lacks it fits model + effect and
-//! ranks the candidates.
+//! measurement that can reveal it ([`DataKind`]), the [`Site`] where it acts, and hooks
+//! with default methods that do nothing, in the spirit of rapier's `PhysicsHooks` and
+//! MuJoCo's plugins:
+//!
+//! | hook | site | what it may do |
+//! |---|---|---|
+//! | [`Effect::on_law`] | rope law | change the constitutive law of every rope (span) it applies to |
+//! | [`Effect::on_pair`] | span, relay pulley, motor | change a rope pair's spec (relays, motor, tensioner) |
+//! | [`Effect::joint_force`] | joint | add a passive torque at a joint, with states of its own ([`JointForce`]) |
+//!
+//! A plant applies them when it is built ([`Applied`]): the rig to its one pair and its
+//! output shaft ([`crate::RigModel::with_effects`]), the arm to each transmission's pair
+//! and each joint (crates/arm). The implicit step evaluates a joint force at every Newton
+//! iteration, with its derivatives in the Newton matrix, and advances its states once
+//! per step ([`crate::transmission::step`]).
+//!
+//! Every effect lives in its own file; [`REGISTRY`] lists them, one line each.
+//! `longreach diagnose` iterates the registry: for every effect the model lacks it fits
+//! model + effect and ranks the candidates. Nothing outside this module matches on an
+//! effect's name.
 //!
 //! # Adding an effect (worked example)
 //!
-//! Suppose the ropes lose part of their pre-load because the rope ends slip in their
-//! clamps: a `preload_loss` effect scaling the tensioner force. It needs one file and
-//! one registry line:
+//! Suppose the output shaft of the rig (or a joint of an arm) drags in a lip seal: a
+//! torque proportional to the rate but only beyond a breakaway rate, a `seal_drag`
+//! effect at the joint site. It needs one file and one registry line:
 //!
-//! 1. Create `crates/drive/src/effects/preload_loss.rs`:
+//! 1. Create `crates/drive/src/effects/seal_drag.rs`:
 //!
 //! ```ignore
-//! //! Loss of pre-load: the tensioner delivers only a fraction of its setting.
-//! use super::{DataKind, Effect, EffectParam};
-//! use crate::{DriveError, RigSpec};
-//! use longreach_rope::RopeLaw;
+//! //! Drag of a lip seal on a joint's shaft.
+//! use std::sync::Arc;
+//! use super::{DataKind, Effect, EffectParam, JointForce, JointTorque, Site, Target};
+//! use crate::DriveError;
 //!
 //! /// See the module docs.
 //! #[derive(Debug)]
-//! pub struct PreloadLoss;
+//! pub struct SealDrag;
 //!
 //! const PARAMS: &[EffectParam] = &[EffectParam {
-//!     name: "fraction_lost", unit: "1", default: 0.1, lower: 0.0, upper: 0.9, log_scale: false,
+//!     name: "drag_n_m_s", unit: "N*m*s", default: 0.01, lower: 1e-5, upper: 10.0,
+//!     log_scale: true, fitted: true,
 //! }];
 //!
-//! impl Effect for PreloadLoss {
-//!     fn name(&self) -> &'static str { "preload_loss" }
-//!     fn doc(&self) -> &'static str { "Clamp slip lowers the mean tension: ..." }
+//! /// The compiled torque law: `-d w` beyond 0.1 rad/s.
+//! #[derive(Debug)]
+//! struct Drag(f64);
+//! impl JointForce for Drag {
+//!     fn torque(&self, _q: f64, w: f64, _state: &[f64]) -> JointTorque {
+//!         if w.abs() <= 0.1 { return JointTorque::default(); }
+//!         JointTorque { torque_n_m: -self.0 * (w - 0.1 * w.signum()), d_angle_n_m: 0.0, d_rate_n_m_s: -self.0 }
+//!     }
+//! }
+//!
+//! impl Effect for SealDrag {
+//!     fn name(&self) -> &'static str { "seal_drag" }
+//!     fn doc(&self) -> &'static str { "A lip seal drags the shaft beyond a breakaway rate: ..." }
 //!     fn params(&self) -> &'static [EffectParam] { PARAMS }
+//!     fn site(&self) -> Site { Site::Joint }
 //!     fn applies_to(&self, kind: DataKind) -> bool { kind == DataKind::SineSweep }
-//!     fn present_in(&self, _law: &RopeLaw, _rig: Option<&RigSpec>) -> bool { false }
-//!     fn apply(&self, v: &[f64], _law: &mut RopeLaw, rig: Option<&mut RigSpec>) -> Result<(), DriveError> {
-//!         if let Some(rig) = rig { rig.mean_tension_n *= 1.0 - v[0]; }
-//!         Ok(())
+//!     fn present_in(&self, target: &Target<'_>) -> bool { target.holds_joint_effect(self) }
+//!     fn joint_force(&self, v: &[f64]) -> Result<Option<Arc<dyn JointForce>>, DriveError> {
+//!         Ok(Some(Arc::new(Drag(v[0]))))
 //!     }
 //! }
 //! ```
 //!
-//! 2. Add `mod preload_loss;` below and `&preload_loss::PreloadLoss,` to [`REGISTRY`].
+//! 2. Add `mod seal_drag;` below and `&seal_drag::SealDrag,` to [`REGISTRY`].
 //!
 //! That is all: `diagnose` now fits and ranks it, model files accept
-//! `[[effect]] name = "preload_loss"`, and `synth --effect preload_loss=0.2` hides it in
-//! synthetic data. The confusion-matrix test (`crates/ident/tests/confusion.rs`) picks
-//! it up too; give it parameter values the data can reveal.
+//! `[[effect]] name = "seal_drag"`, `synth --effect seal_drag=0.05` hides it in
+//! synthetic data, and the rig and every arm joint can carry it. The confusion-matrix
+//! study (`crates/ident/tests/confusion.rs`) picks it up too; give it parameter values
+//! the data can reveal. [`joint_friction`](JointFriction) is a complete example of a
+//! joint-site effect, [`relay_friction`](RelayFrictionEffect) of a pair-site one.
 
 mod extra_retardation;
 mod hooks;
 mod internal_damping;
+mod joint_friction;
 mod nonlinear_creep;
 mod nonlinear_stiffness;
 mod plastic_ratchet;
@@ -61,14 +90,18 @@ mod relay_friction;
 pub use extra_retardation::ExtraRetardation;
 pub use hooks::{JointForce, JointTorque};
 pub use internal_damping::InternalDamping;
+pub use joint_friction::{BearingFriction, JointFriction};
 pub use nonlinear_creep::NonlinearCreepEffect;
 pub use nonlinear_stiffness::NonlinearStiffness;
 pub use plastic_ratchet::PlasticRatchet;
 pub use relay_friction::RelayFrictionEffect;
 
+use std::sync::Arc;
+
 use longreach_rope::RopeLaw;
 
-use crate::{DriveError, RigSpec};
+use crate::transmission::PairSpec;
+use crate::DriveError;
 
 /// The kind of measurement an effect is looked for in (the `kind` of a dataset).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -79,6 +112,40 @@ pub enum DataKind {
     Relaxation,
     /// Cyclic load-strain test.
     Cyclic,
+}
+
+/// Where an effect acts in a plant.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Site {
+    /// The constitutive law of every rope (and span) ([`Effect::on_law`]).
+    RopeLaw,
+    /// The spans of a rope pair ([`Effect::on_pair`]).
+    Span,
+    /// The relay pulleys of a rope pair ([`Effect::on_pair`]).
+    RelayPulley,
+    /// A joint: the rig's output shaft, an arm's joint ([`Effect::joint_force`]).
+    Joint,
+    /// A link of an arm (its compliance; no hook yet).
+    Link,
+    /// The motor of a rope pair ([`Effect::on_pair`]).
+    Motor,
+    /// A measured channel (no hook yet).
+    Sensor,
+}
+
+impl Site {
+    /// Lower-case name (reports).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::RopeLaw => "rope law",
+            Self::Span => "span",
+            Self::RelayPulley => "relay pulley",
+            Self::Joint => "joint",
+            Self::Link => "link",
+            Self::Motor => "motor",
+            Self::Sensor => "sensor",
+        }
+    }
 }
 
 /// One parameter of an effect.
@@ -96,29 +163,58 @@ pub struct EffectParam {
     pub upper: f64,
     /// Fit on `ln(value)` (positive parameters spanning decades).
     pub log_scale: bool,
+    /// Fitted when the effect is a candidate (false: a regularisation or a setting
+    /// the data cannot pin down, kept at its default unless a model file frees it).
+    pub fitted: bool,
 }
 
-/// A physical effect that can be added to a model.
+/// What an effect may already be present in ([`Effect::present_in`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Target<'a> {
+    /// The rope law.
+    pub law: &'a RopeLaw,
+    /// The rope pair, when the data's plant has one.
+    pub pair: Option<&'a PairSpec>,
+    /// The effects already acting at the joints.
+    pub joint_effects: &'a [&'static dyn Effect],
+}
+
+impl Target<'_> {
+    /// True when `effect` already acts at a joint.
+    pub fn holds_joint_effect(&self, effect: &dyn Effect) -> bool {
+        self.joint_effects.iter().any(|e| same(*e, effect))
+    }
+}
+
+/// A physical effect that can be added to a model. Only the description is required;
+/// every hook has a default that does nothing (module docs).
 pub trait Effect: Sync + std::fmt::Debug {
     /// Name as in model files and reports (snake_case).
     fn name(&self) -> &'static str;
     /// A paragraph of physics: what the effect is, what it does to the data.
     fn doc(&self) -> &'static str;
-    /// Parameters, in the order `apply` takes them.
+    /// Parameters, in the order the hooks take them.
     fn params(&self) -> &'static [EffectParam];
+    /// Where the effect acts.
+    fn site(&self) -> Site;
     /// True when a measurement of this kind can reveal the effect.
     fn applies_to(&self, kind: DataKind) -> bool;
-    /// True when `law` (or, for effects acting on the transmission, `rig` when given)
-    /// already holds this effect (diagnose then skips it).
-    fn present_in(&self, law: &RopeLaw, rig: Option<&RigSpec>) -> bool;
-    /// Adds the effect with parameter values `values` to the rope law and, when it acts
-    /// on the transmission, to the rig.
-    fn apply(
-        &self,
-        values: &[f64],
-        law: &mut RopeLaw,
-        rig: Option<&mut RigSpec>,
-    ) -> Result<(), DriveError>;
+    /// True when `target` already holds this effect (diagnose then skips it).
+    fn present_in(&self, _target: &Target<'_>) -> bool {
+        false
+    }
+    /// Rope-law site: adds the effect with parameter values `values` to a rope law.
+    fn on_law(&self, _values: &[f64], _law: &mut RopeLaw) -> Result<(), DriveError> {
+        Ok(())
+    }
+    /// Span, relay-pulley or motor site: adds the effect to a rope pair's spec.
+    fn on_pair(&self, _values: &[f64], _pair: &mut PairSpec) -> Result<(), DriveError> {
+        Ok(())
+    }
+    /// Joint site: the passive torque the effect adds at a joint (`None`: none).
+    fn joint_force(&self, _values: &[f64]) -> Result<Option<Arc<dyn JointForce>>, DriveError> {
+        Ok(None)
+    }
 }
 
 /// Every registered effect, one line each.
@@ -129,6 +225,7 @@ pub static REGISTRY: &[&dyn Effect] = &[
     &nonlinear_creep::NonlinearCreepEffect,
     &plastic_ratchet::PlasticRatchet,
     &relay_friction::RelayFrictionEffect,
+    &joint_friction::JointFriction,
 ];
 
 /// The registered effect called `name`.
@@ -141,8 +238,13 @@ pub fn names() -> Vec<&'static str> {
     REGISTRY.iter().map(|e| e.name()).collect()
 }
 
+/// True when `a` and `b` are the same registered effect.
+pub fn same(a: &dyn Effect, b: &dyn Effect) -> bool {
+    a.name() == b.name()
+}
+
 /// Checks that `values` has one finite value per parameter, within bounds.
-pub(crate) fn check(effect: &dyn Effect, values: &[f64]) -> Result<(), DriveError> {
+pub fn check(effect: &dyn Effect, values: &[f64]) -> Result<(), DriveError> {
     let params = effect.params();
     if values.len() != params.len() {
         return Err(DriveError::BadParameter {
@@ -165,4 +267,50 @@ pub(crate) fn check(effect: &dyn Effect, values: &[f64]) -> Result<(), DriveErro
         }
     }
     Ok(())
+}
+
+/// An effect with its parameter values (checked), as a plant applies it when it is
+/// built.
+#[derive(Debug, Clone)]
+pub struct Applied {
+    /// The registered effect.
+    pub effect: &'static dyn Effect,
+    /// One value per parameter, within bounds.
+    pub values: Vec<f64>,
+}
+
+impl Applied {
+    /// Checks `values` against the effect's parameters.
+    pub fn new(effect: &'static dyn Effect, values: Vec<f64>) -> Result<Self, DriveError> {
+        check(effect, &values)?;
+        Ok(Self { effect, values })
+    }
+
+    /// The effect at its default parameters.
+    pub fn default_of(effect: &'static dyn Effect) -> Self {
+        Self {
+            effect,
+            values: effect.params().iter().map(|p| p.default).collect(),
+        }
+    }
+
+    /// Applies the rope-law and pair hooks to a rope pair.
+    pub fn apply_to_pair(&self, pair: &mut PairSpec) -> Result<(), DriveError> {
+        self.effect.on_law(&self.values, &mut pair.law)?;
+        self.effect.on_pair(&self.values, pair)?;
+        pair.law.validate()?;
+        Ok(())
+    }
+
+    /// Applies the rope-law hook to a rope law alone (a specimen).
+    pub fn apply_to_law(&self, law: &mut RopeLaw) -> Result<(), DriveError> {
+        self.effect.on_law(&self.values, law)?;
+        law.validate()?;
+        Ok(())
+    }
+
+    /// The passive torque the effect adds at a joint, if any.
+    pub fn joint_force(&self) -> Result<Option<Arc<dyn JointForce>>, DriveError> {
+        self.effect.joint_force(&self.values)
+    }
 }

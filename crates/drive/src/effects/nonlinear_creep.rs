@@ -2,8 +2,8 @@
 
 use longreach_rope::{NonlinearCreep, RopeLaw};
 
-use super::{check, DataKind, Effect, EffectParam};
-use crate::{DriveError, RigSpec};
+use super::{check, DataKind, Effect, EffectParam, Site, Target};
+use crate::DriveError;
 
 /// The creep dashpot c2 flows faster under high tension.
 #[derive(Debug)]
@@ -17,6 +17,7 @@ const PARAMS: &[EffectParam] = &[
         lower: 10.0,
         upper: 1e5,
         log_scale: true,
+        fitted: true,
     },
     EffectParam {
         name: "exponent",
@@ -25,6 +26,7 @@ const PARAMS: &[EffectParam] = &[
         lower: 1.0,
         upper: 6.0,
         log_scale: false,
+        fitted: true,
     },
 ];
 
@@ -46,15 +48,14 @@ impl Effect for NonlinearCreepEffect {
     fn applies_to(&self, kind: DataKind) -> bool {
         kind != DataKind::SineSweep
     }
-    fn present_in(&self, law: &RopeLaw, _rig: Option<&RigSpec>) -> bool {
+    fn site(&self) -> Site {
+        Site::RopeLaw
+    }
+    fn present_in(&self, target: &Target<'_>) -> bool {
+        let law = target.law;
         law.creep.is_some() || law.c2_n_s.is_none()
     }
-    fn apply(
-        &self,
-        values: &[f64],
-        law: &mut RopeLaw,
-        _rig: Option<&mut RigSpec>,
-    ) -> Result<(), DriveError> {
+    fn on_law(&self, values: &[f64], law: &mut RopeLaw) -> Result<(), DriveError> {
         check(self, values)?;
         law.creep = Some(NonlinearCreep {
             tension_n: values[0],

@@ -2,8 +2,8 @@
 
 use longreach_rope::RopeLaw;
 
-use super::{check, DataKind, Effect, EffectParam};
-use crate::{DriveError, RigSpec};
+use super::{check, DataKind, Effect, EffectParam, Site, Target};
+use crate::DriveError;
 
 /// Rope stiffness that rises with tension: the head spring's tangent stiffness is
 /// `k1 * (1 + b * f)`.
@@ -17,6 +17,7 @@ const PARAMS: &[EffectParam] = &[EffectParam {
     lower: 1e-6,
     upper: 0.05,
     log_scale: true,
+    fitted: true,
 }];
 
 impl Effect for NonlinearStiffness {
@@ -36,15 +37,14 @@ impl Effect for NonlinearStiffness {
     fn applies_to(&self, _kind: DataKind) -> bool {
         true
     }
-    fn present_in(&self, law: &RopeLaw, _rig: Option<&RigSpec>) -> bool {
+    fn site(&self) -> Site {
+        Site::RopeLaw
+    }
+    fn present_in(&self, target: &Target<'_>) -> bool {
+        let law = target.law;
         law.stiffening_per_n > 0.0
     }
-    fn apply(
-        &self,
-        values: &[f64],
-        law: &mut RopeLaw,
-        _rig: Option<&mut RigSpec>,
-    ) -> Result<(), DriveError> {
+    fn on_law(&self, values: &[f64], law: &mut RopeLaw) -> Result<(), DriveError> {
         check(self, values)?;
         law.stiffening_per_n = values[0];
         Ok(law.validate()?)

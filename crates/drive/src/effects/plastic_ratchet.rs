@@ -2,8 +2,8 @@
 
 use longreach_rope::RopeLaw;
 
-use super::{check, DataKind, Effect, EffectParam};
-use crate::{DriveError, RigSpec};
+use super::{check, DataKind, Effect, EffectParam, Site, Target};
+use crate::DriveError;
 
 /// The ratchet || kp element of Flory's model (Fig. 2, eqs. 1-2).
 #[derive(Debug)]
@@ -16,6 +16,7 @@ const PARAMS: &[EffectParam] = &[EffectParam {
     lower: 1e3,
     upper: 1e7,
     log_scale: true,
+    fitted: true,
 }];
 
 impl Effect for PlasticRatchet {
@@ -38,15 +39,14 @@ impl Effect for PlasticRatchet {
     fn applies_to(&self, kind: DataKind) -> bool {
         kind != DataKind::SineSweep
     }
-    fn present_in(&self, law: &RopeLaw, _rig: Option<&RigSpec>) -> bool {
+    fn site(&self) -> Site {
+        Site::RopeLaw
+    }
+    fn present_in(&self, target: &Target<'_>) -> bool {
+        let law = target.law;
         law.kp_n.is_some()
     }
-    fn apply(
-        &self,
-        values: &[f64],
-        law: &mut RopeLaw,
-        _rig: Option<&mut RigSpec>,
-    ) -> Result<(), DriveError> {
+    fn on_law(&self, values: &[f64], law: &mut RopeLaw) -> Result<(), DriveError> {
         check(self, values)?;
         law.kp_n = Some(values[0]);
         Ok(law.validate()?)

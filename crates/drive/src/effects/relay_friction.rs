@@ -1,9 +1,8 @@
 //! Load-dependent friction and inertia at the relay pulleys.
 
-use longreach_rope::RopeLaw;
-
-use super::{check, DataKind, Effect, EffectParam};
-use crate::{DriveError, RelayFriction, RigSpec};
+use super::{check, DataKind, Effect, EffectParam, Site, Target};
+use crate::transmission::PairSpec;
+use crate::{DriveError, RelayFriction};
 
 /// Bearing friction proportional to the hub load, and inertia, at every relay pulley
 /// ([`RelayFriction`]); each rope is then split into spans with their own state.
@@ -18,6 +17,7 @@ const PARAMS: &[EffectParam] = &[
         lower: 1e-4,
         upper: 0.2,
         log_scale: true,
+        fitted: true,
     },
     EffectParam {
         name: "inertia_kg_m2",
@@ -28,6 +28,7 @@ const PARAMS: &[EffectParam] = &[
         // The arm's relay pulleys (radius ~0.2 m) reach ~1e-2 kg*m^2.
         upper: 0.1,
         log_scale: true,
+        fitted: true,
     },
 ];
 
@@ -53,29 +54,27 @@ impl Effect for RelayFrictionEffect {
     fn applies_to(&self, kind: DataKind) -> bool {
         kind == DataKind::SineSweep
     }
-    fn present_in(&self, _law: &RopeLaw, rig: Option<&RigSpec>) -> bool {
-        rig.is_some_and(|r| r.relay_friction.is_some_and(|f| f.coefficient > 0.0))
+    fn site(&self) -> Site {
+        Site::RelayPulley
     }
-    fn apply(
-        &self,
-        values: &[f64],
-        _law: &mut RopeLaw,
-        rig: Option<&mut RigSpec>,
-    ) -> Result<(), DriveError> {
+    fn present_in(&self, target: &Target<'_>) -> bool {
+        target
+            .pair
+            .is_some_and(|p| p.relay_friction.is_some_and(|f| f.coefficient > 0.0))
+    }
+    fn on_pair(&self, values: &[f64], pair: &mut PairSpec) -> Result<(), DriveError> {
         check(self, values)?;
-        if let Some(rig) = rig {
-            let friction = RelayFriction {
-                coefficient: values[0],
-                inertia_kg_m2: values[1],
-                slip_rate_rad_s: rig
-                    .relay_friction
-                    .map_or(RelayFriction::DEFAULT_SLIP_RATE_RAD_S, |f| {
-                        f.slip_rate_rad_s
-                    }),
-            };
-            friction.validate()?;
-            rig.relay_friction = Some(friction);
-        }
+        let friction = RelayFriction {
+            coefficient: values[0],
+            inertia_kg_m2: values[1],
+            slip_rate_rad_s: pair
+                .relay_friction
+                .map_or(RelayFriction::DEFAULT_SLIP_RATE_RAD_S, |f| {
+                    f.slip_rate_rad_s
+                }),
+        };
+        friction.validate()?;
+        pair.relay_friction = Some(friction);
         Ok(())
     }
 }

@@ -41,7 +41,7 @@ use super::relay::RelayState;
 use super::servo::{servo_row, wanted_saturation, MotorStart};
 use super::spec::Tensioner;
 use super::state::{PlantState, Solver};
-use crate::effects::JointForce;
+use crate::effects::{Effect, JointForce};
 use crate::error::DriveError;
 
 /// Default Newton tolerance of a plant without relay friction, rad.
@@ -114,8 +114,8 @@ pub trait JointSide {
 pub struct JointLoad {
     /// The joint it acts on.
     pub joint: usize,
-    /// The registered effect's name (reports).
-    pub effect: &'static str,
+    /// The registered effect.
+    pub effect: &'static dyn Effect,
     /// The torque law, compiled with its parameter values.
     pub force: Arc<dyn JointForce>,
 }
@@ -176,7 +176,7 @@ impl Drivetrain {
         for l in &loads {
             if l.joint >= ndofs {
                 return Err(DriveError::BadTransmission {
-                    field: format!("effect {}", l.effect),
+                    field: format!("effect {}", l.effect.name()),
                     reason: format!("joint index {} out of range ({ndofs} joints)", l.joint),
                 });
             }

@@ -262,22 +262,34 @@ fn bad_relay_values_name_the_field() {
     assert!(err.contains("rest_state"), "{err}");
 }
 
-/// The registry's `relay_friction` effect sets the rig's relay friction, checks its
-/// bounds by name, and is seen as present afterwards.
+/// The registry's `relay_friction` effect acts at the relay pulleys: it sets the pair's
+/// relay friction (the rig built with it has the friction), checks its bounds by name,
+/// and is seen as present afterwards.
 #[test]
 fn the_effect_sets_the_rig() {
     let e = effects::find("relay_friction").unwrap();
     assert!(e.applies_to(DataKind::SineSweep) && !e.applies_to(DataKind::Relaxation));
-    let mut rig = spec("dyneema2", None, 0.05, 147.0);
-    let mut law = rig.law.clone();
-    assert!(!e.present_in(&law, Some(&rig)));
-    e.apply(&[0.03, 4e-5], &mut law, Some(&mut rig)).unwrap();
-    assert_eq!(law, rig.law);
-    let f = rig.relay_friction.unwrap();
+    assert_eq!(e.site(), effects::Site::RelayPulley);
+    let rig = spec("dyneema2", None, 0.05, 147.0);
+    let mut pair = rig.pair_spec();
+    let target = |p: &longreach_drive::transmission::PairSpec| {
+        e.present_in(&effects::Target {
+            law: &rig.law,
+            pair: Some(p),
+            joint_effects: &[],
+        })
+    };
+    assert!(!target(&pair));
+    let applied = effects::Applied::new(e, vec![0.03, 4e-5]).unwrap();
+    applied.apply_to_pair(&mut pair).unwrap();
+    assert_eq!(pair.law, rig.law);
+    let f = pair.relay_friction.unwrap();
     assert_eq!((f.coefficient, f.inertia_kg_m2), (0.03, 4e-5));
-    assert!(e.present_in(&law, Some(&rig)));
-    assert!(!e.present_in(&law, None));
-    let err = e.apply(&[0.5, 4e-5], &mut law, Some(&mut rig)).unwrap_err();
+    assert!(target(&pair));
+    let model = RigModel::with_effects(rig.clone(), &[applied], 1e-3).unwrap();
+    assert_eq!(model.spec().relay_friction, Some(f));
+    assert_eq!(model.pair().relays.as_ref().map(|c| c.relays()), Some(3));
+    let err = effects::Applied::new(e, vec![0.5, 4e-5]).unwrap_err();
     assert!(
         err.to_string().contains("relay_friction.coefficient"),
         "{err}"
