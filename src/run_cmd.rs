@@ -39,7 +39,7 @@ pub fn run(args: &RunArgs) -> Result<ExitCode> {
     let steps = (sc.sim.duration_s / arm.dt_s()).round() as u64;
     // A progress bar when the run is expected to take more than a second (~5 us/step
     // per link pair is a safe over-estimate).
-    let expected_s = steps as f64 * 5e-6 * arm.spec.ndofs().max(1) as f64;
+    let expected_s = steps as f64 * 5e-6 * arm.spec().ndofs().max(1) as f64;
     let bar = if expected_s > 1.0 {
         let b = ProgressBar::new(steps);
         b.set_style(

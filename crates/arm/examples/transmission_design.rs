@@ -15,7 +15,7 @@ fn main() {
         }
     };
     let arm = &sc.arm;
-    let g = longreach_arm::gravity_torques(&arm.spec, arm.initial_q_rad()).unwrap_or_default();
+    let g = longreach_arm::gravity_torques(arm.spec(), arm.initial_q_rad()).unwrap_or_default();
     println!("| joint | gravity torque (N*m) | r_joint (m) | ropes | L (m) | preload (N) | pair force (N) | f+ (N) | f- (N) | rope | static SF |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
     for (p, s) in arm
@@ -26,7 +26,7 @@ fn main() {
         let j = p.spec.joint;
         println!(
             "| {} | {:.2} | {} | {} | {:.2} | {} | {:.1} | {:.1} | {:.1} | {} | {:.2} |",
-            arm.spec.joints[j].name,
+            arm.spec().joints[j].name,
             g[j],
             p.spec.joint_radius_m,
             p.spec.ropes_in_parallel,

@@ -69,15 +69,15 @@ pub struct RunMetrics {
 /// Column names of the trace of `arm`.
 pub fn columns(arm: &DrivenArm) -> Vec<String> {
     let mut c = vec!["time_s".to_string()];
-    for j in &arm.spec.joints {
+    for j in &arm.spec().joints {
         c.push(format!("q_{}_rad", j.name));
         c.push(format!("qref_{}_rad", j.name));
     }
     for p in arm.pairs() {
-        c.push(format!("motor_{}_rad", arm.spec.joints[p.spec.joint].name));
+        c.push(format!("motor_{}_rad", arm.spec().joints[p.spec.joint].name));
     }
     for p in arm.pairs() {
-        let name = &arm.spec.joints[p.spec.joint].name;
+        let name = &arm.spec().joints[p.spec.joint].name;
         match &p.relays {
             None => {
                 c.push(format!("tension_{name}_pos_n"));
@@ -260,7 +260,7 @@ pub fn run_observed(
                 (lo.min(*q), hi.max(*q))
             });
         joints.push(JointMetrics {
-            joint: arm.spec.joints[j].name.clone(),
+            joint: arm.spec().joints[j].name.clone(),
             move_rad,
             settling_time_s: settling,
             overshoot_pct: overshoot,
@@ -273,7 +273,7 @@ pub fn run_observed(
         .iter()
         .enumerate()
         .map(|(p, pair)| PairMetrics {
-            joint: arm.spec.joints[pair.spec.joint].name.clone(),
+            joint: arm.spec().joints[pair.spec.joint].name.clone(),
             rope: pair.spec.rope_name.clone(),
             ropes_in_parallel: pair.spec.ropes_in_parallel,
             peak_tension_n: peak[p],

@@ -45,13 +45,11 @@ pub use longreach_drive::transmission::{StaticPair, RELAY_NEWTON_TOLERANCE};
 /// A compiled driven arm (immutable; share it between runs).
 #[derive(Debug, Clone)]
 pub struct DrivenArm {
-    /// The arm.
-    pub spec: ArmSpec,
+    spec: ArmSpec,
     dynamics: FastDynamics,
     /// The rope pairs (compiled for `dt_s`) and the effects at the joints.
     drive: Drivetrain,
-    /// Routing matrix (pairs x joints).
-    pub routing: RoutingMatrix,
+    routing: RoutingMatrix,
     commands: Vec<Command>,
     initial_q_rad: Vec<f64>,
     compensate_routing: bool,
@@ -285,6 +283,16 @@ impl DrivenArm {
     /// Step, s.
     pub fn dt_s(&self) -> f64 {
         self.dt_s
+    }
+
+    /// The arm (with the gravity it is simulated under).
+    pub fn spec(&self) -> &ArmSpec {
+        &self.spec
+    }
+
+    /// Routing matrix (pairs x joints).
+    pub fn routing(&self) -> &RoutingMatrix {
+        &self.routing
     }
 
     /// The rope pairs, compiled for `dt_s`.

@@ -79,7 +79,7 @@ struct Layout {
 impl Layout {
     fn new(arm: &DrivenArm) -> Self {
         Self {
-            joints: arm.spec.ndofs(),
+            joints: arm.spec().ndofs(),
             pairs: arm.pairs().len(),
             spans: arm
                 .pairs()
@@ -272,18 +272,18 @@ struct Drawer {
 impl Drawer {
     /// Prepares the channels of `arm`.
     fn new(sink: Sink, arm: DrivenArm, layout: Layout) -> Self {
-        let dynamics = FastDynamics::new(&arm.spec);
+        let dynamics = FastDynamics::new(arm.spec());
         let kin = dynamics.make_kin();
         let mut cols = Columns::on_duration(SIM_TIME);
-        let links = arm.spec.links[1..]
+        let links = arm.spec().links[1..]
             .iter()
             .map(|l| cols.pose(format!("/world/arm/{}", l.name)))
             .collect();
         let scale_m = draw_scale_m(&arm);
         let rope_radius_m = 0.004 * scale_m;
         let ropes = cols.strips("/world/ropes", rope_radius_m);
-        let joint_name = |p: usize| arm.spec.joints[arm.pairs()[p].spec.joint].name.clone();
-        let joints: Vec<&str> = arm.spec.joints.iter().map(|j| j.name.as_str()).collect();
+        let joint_name = |p: usize| arm.spec().joints[arm.pairs()[p].spec.joint].name.clone();
+        let joints: Vec<&str> = arm.spec().joints.iter().map(|j| j.name.as_str()).collect();
         let pairs: Vec<String> = (0..arm.pairs().len()).map(joint_name).collect();
         let named = |suffixes: &[&str], of: &[&str]| -> Vec<String> {
             suffixes
@@ -361,7 +361,7 @@ impl Drawer {
             "view coordinates",
             s.log_static("/world", &ViewCoordinates::RIGHT_HAND_Z_UP()),
         );
-        let spec = &self.arm.spec;
+        let spec = self.arm.spec();
         // Every link's URDF visuals and the pulleys on its joint axis, one static row
         // per link (one batch per shape kind): a handful of chunks for the whole arm.
         let mut shapes: Vec<LinkShapes> = vec![LinkShapes::default(); spec.links.len()];
@@ -586,7 +586,7 @@ impl Drawer {
 
     /// World position of the arm's tip frame from kinematics `kin`, m.
     fn tip_m(&self, kin: &Kin) -> Vector3<f64> {
-        let tip = &self.arm.spec.tip;
+        let tip = &self.arm.spec().tip;
         kin.origin[tip.link] + kin.rot[tip.link] * tip.link_from_frame.translation.vector
     }
 
@@ -706,7 +706,7 @@ mod tests {
         let rec = Recorder::off();
         let mut logger = Drawer::new(rec.sink().clone(), arm.clone(), Layout::new(&arm));
         for k in 0..5 {
-            let q: Vec<f64> = (0..arm.spec.ndofs())
+            let q: Vec<f64> = (0..arm.spec().ndofs())
                 .map(|j| 0.3 * ((k * 7 + j * 3) as f64).sin())
                 .collect();
             logger.dynamics.kinematics(&q, &mut logger.kin);

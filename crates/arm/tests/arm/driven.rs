@@ -75,7 +75,7 @@ fn statics_rope_torques_equal_gravity_torques() {
     let arm = arm5_driven(servo(0.01, 200.0, 5.0), vec![Command::Hold; 5]);
     let mut st = arm.initial_state();
     let q = st.q_rad.clone();
-    let g = dynamics::gravity_torques(&arm.spec, &q).unwrap();
+    let g = dynamics::gravity_torques(arm.spec(), &q).unwrap();
     let tau = arm.rope_joint_torques(&st);
     for j in 0..5 {
         assert!(

@@ -42,7 +42,7 @@ fn rope_torques(arm: &DrivenArm) -> Vec<f64> {
         .iter()
         .map(|s| s.phi_n)
         .collect();
-    arm.routing.transpose_apply(&phi)
+    arm.routing().transpose_apply(&phi)
 }
 
 #[test]

@@ -33,7 +33,7 @@ fn rope_torques(arm: &DrivenArm, st: &DrivenState, q: &[f64], motor_rad: &[f64])
 /// implicit step's motor angles (the trapezoidal rule's view of them); and the largest
 /// joint motion (rad).
 fn largest_difference(arm: &DrivenArm, substeps: usize, duration_s: f64) -> (f64, f64) {
-    let model = ArmModel::new(arm.spec.clone()).unwrap();
+    let model = ArmModel::new(arm.spec().clone()).unwrap();
     let mut data = model.make_data();
     let mut st = arm.initial_state();
     let q0 = st.q_rad.clone();

@@ -31,7 +31,7 @@ fn defaults_route_and_lengths_come_from_the_geometry() {
     let arm = &sc.arm;
     assert_eq!(arm.pairs().len(), 2);
     // Pair 2 runs over the relay at q1 (r = 25 mm): row [0.025, 0.025, 0, 0, 0].
-    assert_eq!(arm.routing.row(1), &[0.025, 0.025, 0.0, 0.0, 0.0]);
+    assert_eq!(arm.routing().row(1), &[0.025, 0.025, 0.0, 0.0, 0.0]);
     // Rope length: 0.5 m motor offset + 2 m link (MuJoCo anchor L_2 = 2.5 m).
     assert!((arm.pairs()[1].spec.length_m - 2.5).abs() < 1e-12);
     assert_eq!(arm.pairs()[1].spec.span_lengths_m.len(), 2);
