@@ -256,7 +256,7 @@ impl DrivenArm {
                 })?;
             loads.push(JointLoad {
                 joint,
-                effect: a.effect,
+                effect: a.effect.name(),
                 force,
             });
         }

@@ -296,7 +296,7 @@ impl RigModel {
             if let Some(force) = a.joint_force()? {
                 loads.push(JointLoad {
                     joint: 0,
-                    effect: a.effect,
+                    effect: a.effect.name(),
                     force,
                 });
             }

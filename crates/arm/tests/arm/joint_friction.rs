@@ -86,7 +86,7 @@ fn urdf_friction_is_the_joint_friction_effect_and_its_work_is_the_energy_lost() 
         &format!(r#"<dynamics damping="0" friction="{coulomb}"/>"#),
     );
     assert_eq!(from_urdf.loads().len(), 1);
-    assert!(effects::same(from_urdf.loads()[0].effect, &JointFriction));
+    assert_eq!(from_urdf.loads()[0].effect, "joint_friction");
     let law = BearingFriction {
         coulomb_n_m: coulomb,
         viscous_n_m_s: 0.0,

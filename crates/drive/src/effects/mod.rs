@@ -79,7 +79,6 @@
 //! joint-site effect, [`relay_friction`](RelayFrictionEffect) of a pair-site one.
 
 mod extra_retardation;
-mod hooks;
 mod internal_damping;
 mod joint_friction;
 mod nonlinear_creep;
@@ -88,7 +87,7 @@ mod plastic_ratchet;
 mod relay_friction;
 
 pub use extra_retardation::ExtraRetardation;
-pub use hooks::{JointForce, JointTorque};
+pub use crate::transmission::{JointForce, JointTorque};
 pub use internal_damping::InternalDamping;
 pub use joint_friction::{BearingFriction, JointFriction};
 pub use nonlinear_creep::NonlinearCreepEffect;
@@ -175,14 +174,15 @@ pub struct Target<'a> {
     pub law: &'a RopeLaw,
     /// The rope pair, when the data's plant has one.
     pub pair: Option<&'a PairSpec>,
-    /// The effects already acting at the joints.
-    pub joint_effects: &'a [&'static dyn Effect],
+    /// The effects already acting at the joints (their names, as in
+    /// [`crate::transmission::JointLoad::effect`]).
+    pub joint_effects: &'a [&'static str],
 }
 
 impl Target<'_> {
     /// True when `effect` already acts at a joint.
     pub fn holds_joint_effect(&self, effect: &dyn Effect) -> bool {
-        self.joint_effects.iter().any(|e| same(*e, effect))
+        self.joint_effects.contains(&effect.name())
     }
 }
 

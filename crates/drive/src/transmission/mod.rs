@@ -44,11 +44,13 @@
 //!   assembly and safeguards);
 //! - `servo`: the motor's row;
 //! - [`state`]: the mutable [`PlantState`];
-//! - [`step`]: the joints' interface ([`JointSide`]), passive torques of effects at
-//!   the joints ([`JointLoad`]), and the implicit step ([`Drivetrain::step`]) in named
-//!   stages.
+//! - [`load`]: passive torques at the joints ([`JointForce`], [`JointLoad`]), what
+//!   effects at the joint site add;
+//! - [`step`]: the joints' interface ([`JointSide`]) and the implicit step
+//!   ([`Drivetrain::step`]) in named stages.
 
 pub(crate) mod ideal;
+pub mod load;
 pub mod pair;
 pub mod relay;
 mod servo;
@@ -60,7 +62,8 @@ pub use pair::{CompiledPair, PairAtRest, StaticPair};
 pub use relay::{CompiledRelays, RelayFriction, RelayRule, RelayState, RelayTorque};
 pub use spec::{MotorMode, MotorSpec, PairSpec, Relay, RoutingMatrix, Tensioner};
 pub use state::PlantState;
+pub use load::{JointForce, JointLoad, JointTorque};
 pub use step::{
-    Drivetrain, DrivetrainEnergy, JointLoad, JointSide, MotorInputs, MAX_KEPT_STEPS,
+    Drivetrain, DrivetrainEnergy, JointSide, MotorInputs, MAX_KEPT_STEPS,
     NEWTON_TOLERANCE, RELAY_NEWTON_TOLERANCE,
 };

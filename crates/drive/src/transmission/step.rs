@@ -28,11 +28,10 @@
 //! up to [`MAX_KEPT_STEPS`] steps) and relays solved alone keep the step cheap: see
 //! docs/arm.md, "Speed".
 
-use std::sync::Arc;
-
 use longreach_rope::PreparedStep;
 
 use super::ideal;
+use super::load::JointLoad;
 use super::pair::CompiledPair;
 use super::relay::assembly::{self as relay, Assembly, Local, MotorRow, RelayScratch};
 use super::relay::factor::{lu_in_place, lu_solve};
@@ -41,7 +40,6 @@ use super::relay::RelayState;
 use super::servo::{servo_row, wanted_saturation, MotorStart};
 use super::spec::Tensioner;
 use super::state::{PlantState, Solver};
-use crate::effects::{Effect, JointForce};
 use crate::error::DriveError;
 
 /// Default Newton tolerance of a plant without relay friction, rad.
@@ -109,17 +107,6 @@ pub trait JointSide {
     fn residual(&self, sc: &mut Self::Scratch, v1: &[f64], a1: &[f64], out: &mut [f64]);
 }
 
-/// A passive torque at one joint from an effect ([`crate::effects::Effect::joint_force`]).
-#[derive(Debug, Clone)]
-pub struct JointLoad {
-    /// The joint it acts on.
-    pub joint: usize,
-    /// The registered effect.
-    pub effect: &'static dyn Effect,
-    /// The torque law, compiled with its parameter values.
-    pub force: Arc<dyn JointForce>,
-}
-
 /// The pairs and joint loads of a plant compiled for one time step, and the settings
 /// of its implicit step (immutable; share it between runs).
 #[derive(Debug, Clone)]
@@ -176,7 +163,7 @@ impl Drivetrain {
         for l in &loads {
             if l.joint >= ndofs {
                 return Err(DriveError::BadTransmission {
-                    field: format!("effect {}", l.effect.name()),
+                    field: format!("effect {}", l.effect),
                     reason: format!("joint index {} out of range ({ndofs} joints)", l.joint),
                 });
             }

@@ -1,6 +1,9 @@
-//! What an effect can add to a plant at its site, beyond changing a spec: passive
-//! torques at a joint, with states of their own (in the spirit of MuJoCo's plugins and
-//! rapier's physics hooks). Every method but the torque has a default.
+//! Passive torques at the joints: what an effect at the joint site adds to a plant
+//! ([`crate::effects::Effect::joint_force`]), with states of its own (in the spirit of
+//! MuJoCo's plugins and rapier's physics hooks). Every method but the torque has a
+//! default.
+
+use std::sync::Arc;
 
 /// A passive torque at one joint, compiled from an effect's parameter values; the
 /// implicit step evaluates it at every Newton iteration at the trial angle and rate
@@ -41,4 +44,15 @@ pub struct JointTorque {
     pub d_angle_n_m: f64,
     /// d torque / d rate, N*m*s/rad.
     pub d_rate_n_m_s: f64,
+}
+
+/// A passive torque at one joint, as the implicit step holds it.
+#[derive(Debug, Clone)]
+pub struct JointLoad {
+    /// The joint it acts on.
+    pub joint: usize,
+    /// The name of the registered effect it comes from (reports).
+    pub effect: &'static str,
+    /// The torque law, compiled with its parameter values.
+    pub force: Arc<dyn JointForce>,
 }
