@@ -12,7 +12,7 @@ pub use dataset::{
     RelaxationDataset, RelaxationRun, RelaxationSpecimen, RigSpec, Segment, SweepDataset, SweepRun,
     Tensioner, WindowAlignment,
 };
-pub use fitting::{fit, FitError, FitOptions, FitResult, ParamSpec, Residuals};
+pub use fitting::{fit, FitError, FitOptions, FitResult, ParamSpec, ResidualError, Residuals};
 pub use metrics::MetricsError;
 pub use sensors::{Encoder, GaussianNoise, SensorError, ENCODER_RESOLUTION_RAD};
 pub mod analysis;

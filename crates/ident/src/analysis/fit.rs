@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use super::compare::dft;
 use super::prepare::Prepared;
 use crate::dataset::DatasetKind;
-use crate::fitting::{fit, FitOptions, FitResult, Residuals};
+use crate::fitting::{fit, FitOptions, FitResult, ResidualError, Residuals};
 use crate::model::Model;
 use crate::sim;
 
@@ -19,7 +19,7 @@ struct Problem<'p, 'a> {
 }
 
 impl Residuals for Problem<'_, '_> {
-    fn residuals(&self, params: &[f64], out: &mut Vec<f64>) -> Result<(), String> {
+    fn residuals(&self, params: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
         let m = self.model.with_values(params, self.prep.runs.len());
         let sims = self.prep.simulate(&m)?;
         *out = self.prep.residuals_of(&sims);
@@ -100,8 +100,8 @@ impl FrfProblem<'_, '_> {
 }
 
 impl Residuals for FrfProblem<'_, '_> {
-    fn residuals(&self, params: &[f64], out: &mut Vec<f64>) -> Result<(), String> {
-        self.eval(params, out)
+    fn residuals(&self, params: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
+        Ok(self.eval(params, out)?)
     }
 }
 
