@@ -61,8 +61,9 @@ use nalgebra034 as na;
 use rayon::prelude::*;
 
 /// Why a [`Residuals`] problem cannot be evaluated at some parameters: any error type
-/// that can cross threads. [`fit`] reports its message, with the parameter values, as
-/// [`FitError::Model`].
+/// that can cross threads (the analysis' problems return an
+/// [`IdentError`](crate::IdentError)). [`fit`] reports its message, with the parameter
+/// values, as [`FitError::Model`].
 pub type ResidualError = Box<dyn std::error::Error + Send + Sync>;
 
 /// A least-squares problem: residuals `r(x)` for parameters `x`.

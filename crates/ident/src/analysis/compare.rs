@@ -7,6 +7,7 @@ use serde::Serialize;
 
 use super::prepare::Prepared;
 use crate::dataset::DatasetKind;
+use crate::error::IdentError;
 use crate::metrics;
 use crate::model::Model;
 use crate::sim;
@@ -141,8 +142,7 @@ pub fn compare(
     prep: &Prepared<'_>,
     model: &Model,
     sims: &[Vec<f64>],
-) -> Result<Comparison, String> {
-    let e = |x: metrics::MetricsError| x.to_string();
+) -> Result<Comparison, IdentError> {
     let sums = prep.sums(sims);
     let total_sse: f64 = sums.iter().map(|s| s.0).sum::<f64>().max(f64::MIN_POSITIVE);
     let (nrmse, floor) = prep.overall(sims);
@@ -257,8 +257,7 @@ pub fn compare(
                 .min(run.time_s.last().copied().unwrap_or(1.0) / 5.0)
                 .max(run.dt_s),
             3,
-        )
-        .map_err(e)?;
+        )?;
         for w in ws {
             windows.push(Where {
                 run: run.name.clone(),

@@ -8,6 +8,7 @@ use serde::Serialize;
 use super::{
     compare, fit_model, screen_model, Comparison, Fitted, Prepared, RunError, RunResonance, Where,
 };
+use crate::error::IdentError;
 use crate::metrics;
 use crate::model::Model;
 
@@ -91,7 +92,7 @@ pub const MIN_SCORE_GAP: f64 = 10.0;
 pub fn diagnose(
     prep: &Prepared<'_>,
     model: &Model,
-) -> Result<(Diagnosis, Fitted, Option<Fitted>), String> {
+) -> Result<(Diagnosis, Fitted, Option<Fitted>), IdentError> {
     let base = fit_model(prep, model)?;
     let cmp = compare(prep, &base.model, &base.sims)?;
     let n = prep.n_samples() as f64;
@@ -109,7 +110,7 @@ pub fn diagnose(
     // At the noise floor no candidate can be decisive: screen them (starting values,
     // one simulation each) instead of fitting them in the time domain.
     let at_floor = base.nrmse <= FLOOR_MARGIN * base.noise_floor;
-    let fits: Vec<(String, Result<Fitted, String>)> = effects
+    let fits: Vec<(String, Result<Fitted, IdentError>)> = effects
         .par_iter()
         .map(|e| {
             let m = base.model.with_effect(*e);
@@ -161,7 +162,7 @@ pub fn diagnose(
                     params: Default::default(),
                     decisive: false,
                     screened: at_floor,
-                    error: Some(err),
+                    error: Some(err.to_string()),
                 },
                 None,
             ),

@@ -9,6 +9,7 @@ use rayon::prelude::*;
 use super::compare::dft;
 use super::prepare::Prepared;
 use crate::dataset::DatasetKind;
+use crate::error::IdentError;
 use crate::fitting::{fit, FitOptions, FitResult, ResidualError, Residuals};
 use crate::model::Model;
 use crate::sim;
@@ -74,9 +75,11 @@ struct FrfProblem<'p, 'a> {
 }
 
 impl FrfProblem<'_, '_> {
-    fn eval(&self, x: &[f64], out: &mut Vec<f64>) -> Result<(), String> {
+    fn eval(&self, x: &[f64], out: &mut Vec<f64>) -> Result<(), IdentError> {
         let DatasetKind::SineSweep(sw) = &self.prep.ds.kind else {
-            return Err("not a sweep".into());
+            return Err(IdentError::NotASweep {
+                kind: self.prep.ds.kind.name(),
+            });
         };
         let m = self.model.with_values(x, self.prep.runs.len());
         let specs: Vec<longreach_drive::RigSpec> = (0..self.prep.runs.len())
@@ -88,7 +91,7 @@ impl FrfProblem<'_, '_> {
                 }
                 Ok(spec)
             })
-            .collect::<Result<_, String>>()?;
+            .collect::<Result<_, IdentError>>()?;
         out.clear();
         for &(r, f, h) in &self.points {
             let d = (longreach_drive::rig_transfer(&specs[r], f) / h).ln();
@@ -122,7 +125,7 @@ fn starting_values(
     prep: &Prepared<'_>,
     model: &Model,
     scan_hidden: bool,
-) -> Result<Vec<Vec<f64>>, String> {
+) -> Result<Vec<Vec<f64>>, IdentError> {
     let specs = model.fit_specs(prep.runs.len());
     let mut x0: Vec<f64> = specs.iter().map(|s| s.initial).collect();
     let slots = model.free_slots(prep.runs.len());
@@ -350,9 +353,9 @@ fn starting_values(
 /// uses it for the candidates when the baseline already fits to the noise floor: no
 /// candidate can be decisive then, and the time-domain fits (of a non-linear law above
 /// all) are the dearest part of a diagnosis.
-pub fn screen_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, String> {
+pub fn screen_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, IdentError> {
     let starts = starting_values(prep, model, false)?;
-    let scored: Vec<Result<(Model, Vec<Vec<f64>>, f64), String>> = starts
+    let scored: Vec<Result<(Model, Vec<Vec<f64>>, f64), IdentError>> = starts
         .par_iter()
         .map(|x| {
             let m = model.with_values(x, prep.runs.len());
@@ -365,7 +368,9 @@ pub fn screen_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, String
         .into_iter()
         .filter_map(Result::ok)
         .min_by(|a, b| a.2.total_cmp(&b.2))
-        .ok_or_else(|| "every start failed to simulate".to_string())?;
+        .ok_or(IdentError::NoStartSimulated {
+            starts: starts.len(),
+        })?;
     let (nrmse, noise_floor) = prep.overall(&sims);
     Ok(Fitted {
         model: fitted_model,
@@ -379,7 +384,7 @@ pub fn screen_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, String
 }
 
 /// Fits the free parameters of `model` to the dataset.
-pub fn fit_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, String> {
+pub fn fit_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, IdentError> {
     let sims0 = prep.simulate(model)?;
     let (nrmse_before, noise_floor) = prep.overall(&sims0);
     let starts = starting_values(prep, model, true)?;
@@ -404,7 +409,7 @@ pub fn fit_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, String> {
             let problem = Problem { prep, model };
             match fit(&problem, &specs, &opts) {
                 Ok(r) => (model.with_values(&r.values, prep.runs.len()), Some(r)),
-                Err(e) if best.is_none() && starts.len() == 1 => return Err(e.to_string()),
+                Err(e) if best.is_none() && starts.len() == 1 => return Err(e.into()),
                 Err(_) => continue,
             }
         };
@@ -413,8 +418,9 @@ pub fn fit_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, String> {
             best = Some((fitted_model, fit_res, ssr));
         }
     }
-    let (fitted_model, fit_res, _) =
-        best.ok_or_else(|| "every fit from the starting grid failed".to_string())?;
+    let (fitted_model, fit_res, _) = best.ok_or(IdentError::NoStartFitted {
+        starts: starts.len(),
+    })?;
     let sims = prep.simulate(&fitted_model)?;
     let (nrmse, _) = prep.overall(&sims);
     let ssr = prep.residuals_of(&sims).iter().map(|e| e * e).sum();

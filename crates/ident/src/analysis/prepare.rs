@@ -5,6 +5,7 @@ use longreach_drive::effects::DataKind;
 use rayon::prelude::*;
 
 use crate::dataset::{Dataset, DatasetKind};
+use crate::error::IdentError;
 use crate::model::{data_kind, Model};
 use crate::sensors::ENCODER_RESOLUTION_RAD;
 use crate::sim;
@@ -86,13 +87,13 @@ pub fn noise_sigma_second_difference(x: &[f64]) -> f64 {
 
 impl<'a> Prepared<'a> {
     /// Prepares `ds`: analysis windows and noise floors.
-    pub fn new(ds: &'a Dataset) -> Result<Self, String> {
+    pub fn new(ds: &'a Dataset) -> Result<Self, IdentError> {
         let runs = match &ds.kind {
             DatasetKind::SineSweep(sw) => sw
                 .runs
                 .iter()
                 .map(|r| {
-                    let segs = r.segments().map_err(|e| e.to_string())?;
+                    let segs = r.segments()?;
                     let idx = segs
                         .iter()
                         .flat_map(|g| g.analysis_start_index..g.analysis_end_index)
@@ -113,7 +114,7 @@ impl<'a> Prepared<'a> {
                         noise_sigma: ENCODER_RESOLUTION_RAD / 12f64.sqrt(),
                     })
                 })
-                .collect::<Result<Vec<_>, String>>()?,
+                .collect::<Result<Vec<_>, IdentError>>()?,
             DatasetKind::Relaxation(rx) => rx
                 .runs
                 .iter()
@@ -135,7 +136,7 @@ impl<'a> Prepared<'a> {
 
     /// Simulates `model` on every run (in parallel, results in run order); returns the
     /// compared channel at every sample.
-    pub fn simulate(&self, model: &Model) -> Result<Vec<Vec<f64>>, String> {
+    pub fn simulate(&self, model: &Model) -> Result<Vec<Vec<f64>>, IdentError> {
         (0..self.runs.len())
             .into_par_iter()
             .map(|r| self.simulate_run(model, r))
@@ -143,7 +144,7 @@ impl<'a> Prepared<'a> {
     }
 
     /// Simulates `model` on run `r`.
-    pub fn simulate_run(&self, model: &Model, r: usize) -> Result<Vec<f64>, String> {
+    pub fn simulate_run(&self, model: &Model, r: usize) -> Result<Vec<f64>, IdentError> {
         let (law, damping) = model.law_for_run(r)?;
         let out = match &self.ds.kind {
             DatasetKind::SineSweep(sw) => {
@@ -163,7 +164,10 @@ impl<'a> Prepared<'a> {
                 sim::simulate_cyclic(&law, &cy.runs[r].time_s, &cy.runs[r].strain)
             }
         };
-        out.map_err(|e| format!("run {}: {e}", self.runs[r].name))
+        out.map_err(|source| IdentError::Simulation {
+            run: self.runs[r].name.clone(),
+            source,
+        })
     }
 
     /// Residuals (model - measured) over the analysed samples of every run, concatenated.
