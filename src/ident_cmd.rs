@@ -112,14 +112,21 @@ pub struct SynthArgs {
     title: Option<String>,
 }
 
+/// An ident error ([`longreach_ident::IdentError`], [`longreach_ident::model::ModelError`])
+/// as the CLI reports it: its message alone. The message already quotes its cause, which
+/// `{:#}` would print a second time if the cause were kept as a source.
+fn message(e: impl std::fmt::Display) -> anyhow::Error {
+    anyhow!("{e}")
+}
+
 fn load(data: &DataArgs) -> Result<(Dataset, Model)> {
     let ds = Dataset::load(&data.dataset)?;
     let model = match &data.model {
-        None => Model::baseline(&ds).map_err(|e| anyhow!("{e}"))?,
+        None => Model::baseline(&ds).map_err(message)?,
         Some(p) => {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("cannot read model file {}", p.display()))?;
-            Model::from_toml(&text, &p.display().to_string(), &ds).map_err(|e| anyhow!("{e}"))?
+            Model::from_toml(&text, &p.display().to_string(), &ds).map_err(message)?
         }
     };
     Ok((ds, model))
@@ -141,8 +148,8 @@ fn fmt(x: f64) -> String {
 /// Runs `fit`.
 pub fn run_fit(a: &FitArgs) -> Result<ExitCode> {
     let (ds, model) = load(&a.data)?;
-    let prep = Prepared::new(&ds).map_err(|e| anyhow!(e))?;
-    let f = analysis::fit_model(&prep, &model).map_err(|e| anyhow!(e))?;
+    let prep = Prepared::new(&ds).map_err(message)?;
+    let f = analysis::fit_model(&prep, &model).map_err(message)?;
     let mut table = Table::new();
     table.set_header(vec!["parameter", "value", "std error", "unit"]);
     let mut params = BTreeMap::new();
@@ -254,9 +261,9 @@ pub fn run_compare(a: &CompareArgs) -> Result<ExitCode> {
         &format!("compare {}", a.data.dataset.display()),
         &rerun_args::default_rrd(None, &a.data.dataset, "_compare"),
     )?;
-    let prep = Prepared::new(&ds).map_err(|e| anyhow!(e))?;
-    let sims = prep.simulate(&model).map_err(|e| anyhow!(e))?;
-    let c = analysis::compare(&prep, &model, &sims).map_err(|e| anyhow!(e))?;
+    let prep = Prepared::new(&ds).map_err(message)?;
+    let sims = prep.simulate(&model).map_err(message)?;
+    let c = analysis::compare(&prep, &model, &sims).map_err(message)?;
     longreach_viz::ident::log_comparison(&rec, &prep, &c, &sims, None, None);
     rerun_args::finish(rec);
     print_comparison(&c);
@@ -276,8 +283,8 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
         &format!("diagnose {}", a.data.dataset.display()),
         &rerun_args::default_rrd(None, &a.data.dataset, "_diagnose"),
     )?;
-    let prep = Prepared::new(&ds).map_err(|e| anyhow!(e))?;
-    let (d, base, winner) = analysis::diagnose(&prep, &model).map_err(|e| anyhow!(e))?;
+    let prep = Prepared::new(&ds).map_err(message)?;
+    let (d, base, winner) = analysis::diagnose(&prep, &model).map_err(message)?;
     let after = winner.as_ref().map(|w| w.sims.as_slice());
     longreach_viz::ident::log_comparison(&rec, &prep, &d.comparison, &base.sims, Some(&d), after);
     rerun_args::finish(rec);
@@ -371,9 +378,9 @@ pub fn run_synth(a: &SynthArgs) -> Result<ExitCode> {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("cannot read model file {}", p.display()))?;
             let ds = placeholder_dataset(&rope);
-            Model::from_toml(&text, &p.display().to_string(), &ds).map_err(|e| anyhow!("{e}"))?
+            Model::from_toml(&text, &p.display().to_string(), &ds).map_err(message)?
         }
-        None => Model::baseline(&placeholder_dataset(&rope)).map_err(|e| anyhow!("{e}"))?,
+        None => Model::baseline(&placeholder_dataset(&rope)).map_err(message)?,
     };
     for s in &a.effects {
         let (e, v) = parse_effect(s)?;
@@ -404,13 +411,13 @@ pub fn run_synth(a: &SynthArgs) -> Result<ExitCode> {
                 .map(|&t| (t, a.amplitude_deg.to_radians()))
                 .collect();
             opt.tension_channels = !a.no_tension;
-            let d = synth::sweep(&model, &opt).map_err(|e| anyhow!(e))?;
+            let d = synth::sweep(&model, &opt).map_err(message)?;
             d.write(&a.out, &title)?;
         }
         SynthKind::Relaxation => {
             let mut opt = synth::RelaxationOptions::paper(&model.rope, a.seed);
             opt.strain = a.strain;
-            let d = synth::relaxation(&model, &opt).map_err(|e| anyhow!(e))?;
+            let d = synth::relaxation(&model, &opt).map_err(message)?;
             d.write(&a.out, &title)?;
         }
     }

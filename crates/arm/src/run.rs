@@ -74,7 +74,10 @@ pub fn columns(arm: &DrivenArm) -> Vec<String> {
         c.push(format!("qref_{}_rad", j.name));
     }
     for p in arm.pairs() {
-        c.push(format!("motor_{}_rad", arm.spec().joints[p.spec.joint].name));
+        c.push(format!(
+            "motor_{}_rad",
+            arm.spec().joints[p.spec.joint].name
+        ));
     }
     for p in arm.pairs() {
         let name = &arm.spec().joints[p.spec.joint].name;

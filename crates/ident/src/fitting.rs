@@ -60,6 +60,12 @@ use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt, TerminationRe
 use nalgebra034 as na;
 use rayon::prelude::*;
 
+/// Why a [`Residuals`] problem cannot be evaluated at some parameters: any error type
+/// that can cross threads (the analysis' problems return an
+/// [`IdentError`](crate::IdentError)). [`fit`] reports its message, with the parameter
+/// values, as [`FitError::Model`].
+pub type ResidualError = Box<dyn std::error::Error + Send + Sync>;
+
 /// A least-squares problem: residuals `r(x)` for parameters `x`.
 ///
 /// `Sync` because the fitter evaluates several parameter vectors at once on different
@@ -68,9 +74,9 @@ use rayon::prelude::*;
 pub trait Residuals: Sync {
     /// Writes the residuals (model - measurement, possibly weighted) for `params` (in the
     /// order of the [`ParamSpec`]s) into `out`, replacing its content. Must produce the
-    /// same number of residuals for every call. Return `Err` with a message if the model
-    /// cannot be evaluated for these parameters.
-    fn residuals(&self, params: &[f64], out: &mut Vec<f64>) -> Result<(), String>;
+    /// same number of residuals for every call. Return `Err` if the model cannot be
+    /// evaluated for these parameters.
+    fn residuals(&self, params: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError>;
 }
 
 /// One parameter to fit.
@@ -364,8 +370,8 @@ fn evaluate(
     let mut out = Vec::with_capacity(expected.unwrap_or(0));
     problem
         .residuals(x, &mut out)
-        .map_err(|message| FitError::Model {
-            message,
+        .map_err(|e| FitError::Model {
+            message: e.to_string(),
             params: format_params(specs, x),
         })?;
     if let Some(n) = expected {

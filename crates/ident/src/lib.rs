@@ -1,8 +1,12 @@
 //! Identification tools for the longreach project: measurement datasets
 //! (`longreach-measurement/1`), error metrics and residual checks, bounded nonlinear
-//! least squares with uncertainties, and sensor models for synthetic data.
+//! least squares with uncertainties, and sensor models for synthetic data; on top of
+//! them the measurement loop: models ([`model`]), their simulation on a dataset
+//! ([`sim`]), fit, compare and diagnose ([`analysis`]) and synthetic datasets
+//! ([`synth`]), which report failures as an [`IdentError`].
 
 pub mod dataset;
+pub mod error;
 pub mod fitting;
 pub mod metrics;
 pub mod sensors;
@@ -12,7 +16,8 @@ pub use dataset::{
     RelaxationDataset, RelaxationRun, RelaxationSpecimen, RigSpec, Segment, SweepDataset, SweepRun,
     Tensioner, WindowAlignment,
 };
-pub use fitting::{fit, FitError, FitOptions, FitResult, ParamSpec, Residuals};
+pub use error::IdentError;
+pub use fitting::{fit, FitError, FitOptions, FitResult, ParamSpec, ResidualError, Residuals};
 pub use metrics::MetricsError;
 pub use sensors::{Encoder, GaussianNoise, SensorError, ENCODER_RESOLUTION_RAD};
 pub mod analysis;

@@ -3,7 +3,8 @@
 //! read from and written to TOML model files (format: `docs/models.md`).
 
 use longreach_drive::effects::{self, Applied, DataKind, Effect, Site, Target};
-use longreach_rope::{Catalog, LawKind, RopeLaw, RopeParams};
+use longreach_drive::DriveError;
+use longreach_rope::{Catalog, LawKind, RopeError, RopeLaw, RopeParams};
 use longreach_scenario::spec::field_error;
 use longreach_scenario::ScenarioError;
 use serde::Serialize;
@@ -114,22 +115,42 @@ pub fn dataset_rope(ds: &Dataset) -> &str {
     }
 }
 
-fn catalog_rope(name: &str) -> Result<RopeParams, String> {
-    Catalog::builtin()
-        .get(name)
-        .cloned()
-        .map_err(|e| e.to_string())
+fn catalog_rope(name: &str) -> Result<RopeParams, RopeError> {
+    Catalog::builtin().get(name).cloned()
 }
 
-/// What a model could not be built from.
+/// What a model could not be built from, or why it cannot give the rope law or the rig
+/// of a run.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ModelError {
     /// A model file problem, located.
     #[error("{0}")]
     File(#[from] ScenarioError),
-    /// Anything else.
-    #[error("{0}")]
-    Other(String),
+    /// The rope is not in the catalog, its constants give no law of the kind asked
+    /// for, or the law with the model's values is invalid.
+    #[error(transparent)]
+    Rope(#[from] RopeError),
+    /// A base parameter whose name is not one of [`BASE_PARAMS`].
+    #[error("unknown base parameter `{name}`")]
+    UnknownBaseParam {
+        /// The name found.
+        name: String,
+    },
+    /// `k3` or `c3` set on a law without a Kelvin-Voigt element (an elastic law).
+    #[error("`{param}` needs a four-element or Flory law")]
+    NeedsKelvinElement {
+        /// The base parameter (`k3` or `c3`).
+        param: String,
+    },
+    /// An effect refused its parameter values (on the rope law or on the rig).
+    #[error("effect {effect}: {source}")]
+    Effect {
+        /// The effect's registered name.
+        effect: &'static str,
+        /// The effect's complaint.
+        #[source]
+        source: DriveError,
+    },
 }
 
 impl Model {
@@ -138,10 +159,9 @@ impl Model {
     /// fit the law's constants (k1, c2, k3, c3 as in the paper, or k1 alone if elastic).
     pub fn baseline(ds: &Dataset) -> Result<Model, ModelError> {
         let rope = dataset_rope(ds).to_string();
-        let params = catalog_rope(&rope).map_err(ModelError::Other)?;
+        let params = catalog_rope(&rope)?;
         let law_kind = LawKind::default_for(&params);
-        let law = RopeLaw::from_params(&params, law_kind)
-            .map_err(|e| ModelError::Other(e.to_string()))?;
+        let law = RopeLaw::from_params(&params, law_kind)?;
         let base = match ds.kind {
             DatasetKind::SineSweep(_) => vec![ParamDef::fitted("k1_scale", "1", 1.0, 0.2, 5.0)],
             _ => law_constants(&law),
@@ -251,7 +271,7 @@ impl Model {
     }
 
     /// Rope law (and rig damping override) of run `run`.
-    pub fn law_for_run(&self, run: usize) -> Result<(RopeLaw, Option<f64>), String> {
+    pub fn law_for_run(&self, run: usize) -> Result<(RopeLaw, Option<f64>), ModelError> {
         let mut law = self.law.clone();
         let mut damping = None;
         for p in &self.base {
@@ -262,10 +282,12 @@ impl Model {
                 "c1" => law.c1_n_s = v,
                 "c2" => law.c2_n_s = Some(v),
                 "k3" | "c3" => {
-                    let el = law
-                        .kelvin
-                        .first_mut()
-                        .ok_or_else(|| format!("`{}` needs a four-element or Flory law", p.name))?;
+                    let el =
+                        law.kelvin
+                            .first_mut()
+                            .ok_or_else(|| ModelError::NeedsKelvinElement {
+                                param: p.name.clone(),
+                            })?;
                     if p.name == "k3" {
                         el.k_n = v;
                     } else {
@@ -274,29 +296,39 @@ impl Model {
                 }
                 "kp" => law.kp_n = Some(v),
                 "output_damping_n_m_s" => damping = Some(v),
-                other => return Err(format!("unknown base parameter `{other}`")),
+                other => {
+                    return Err(ModelError::UnknownBaseParam {
+                        name: other.to_string(),
+                    })
+                }
             }
         }
         for u in &self.effects {
             let vals: Vec<f64> = u.params.iter().map(|p| p.value_for(run)).collect();
             u.effect
                 .on_law(&vals, &mut law)
-                .map_err(|e| format!("effect {}: {e}", u.effect.name()))?;
+                .map_err(|source| ModelError::Effect {
+                    effect: u.effect.name(),
+                    source,
+                })?;
         }
-        law.validate().map_err(|e| e.to_string())?;
+        law.validate()?;
         Ok((law, damping))
     }
 
     /// The model's effects at sites other than the rope law (relay pulleys, joints),
     /// with their values for run `run`, for the plant to apply when it is built (the
     /// rope-law effects are in [`Self::law_for_run`]).
-    pub fn plant_effects_for_run(&self, run: usize) -> Result<Vec<Applied>, String> {
+    pub fn plant_effects_for_run(&self, run: usize) -> Result<Vec<Applied>, ModelError> {
         self.effects
             .iter()
             .filter(|u| u.effect.site() != Site::RopeLaw)
             .map(|u| {
                 let vals: Vec<f64> = u.params.iter().map(|p| p.value_for(run)).collect();
-                Applied::new(u.effect, vals).map_err(|e| format!("effect {}: {e}", u.effect.name()))
+                Applied::new(u.effect, vals).map_err(|source| ModelError::Effect {
+                    effect: u.effect.name(),
+                    source,
+                })
             })
             .collect()
     }
@@ -420,8 +452,13 @@ impl Model {
                 ))
             }
         };
-        let params = catalog_rope(&rope)
-            .map_err(|e| err("rope", e, "use a name listed by `longreach ropes`"))?;
+        let params = catalog_rope(&rope).map_err(|e| {
+            err(
+                "rope",
+                e.to_string(),
+                "use a name listed by `longreach ropes`",
+            )
+        })?;
         let law_kind = match doc.get("law") {
             None => LawKind::default_for(&params),
             Some(toml::Value::String(s)) => match s.as_str() {
@@ -588,7 +625,7 @@ impl Model {
             effects: effects_out,
         };
         m.law_for_run(0)
-            .map_err(|e| err("effect", e, "correct the parameter values"))?;
+            .map_err(|e| err("effect", e.to_string(), "correct the parameter values"))?;
         Ok(m)
     }
 }

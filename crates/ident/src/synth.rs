@@ -7,6 +7,7 @@ use crate::dataset::{
     CyclicDataset, CyclicRun, CyclicSpecimen, Frf, RelaxationDataset, RelaxationRun,
     RelaxationSpecimen, RigSpec, SweepDataset, SweepRun, Tensioner,
 };
+use crate::error::IdentError;
 use crate::model::Model;
 use crate::sensors::{Encoder, GaussianNoise};
 use crate::sim;
@@ -72,7 +73,7 @@ impl SweepOptions {
 
 /// Simulates `model` (its values for run `r` apply to run `r`) on the options' schedule
 /// and writes nothing: returns the dataset (write it with [`SweepDataset::write`]).
-pub fn sweep(model: &Model, opt: &SweepOptions) -> Result<SweepDataset, String> {
+pub fn sweep(model: &Model, opt: &SweepOptions) -> Result<SweepDataset, IdentError> {
     let enc = Encoder::rig();
     let mut runs = Vec::new();
     for (r, &(tension, amp)) in opt.runs.iter().enumerate() {
@@ -83,7 +84,7 @@ pub fn sweep(model: &Model, opt: &SweepOptions) -> Result<SweepDataset, String> 
             min_cycles: 2,
             min_hold_s: opt.min_hold_s,
         };
-        let signal = InputSignal::stepped_sine(sine.clone()).map_err(|e| e.to_string())?;
+        let signal = InputSignal::stepped_sine(sine.clone()).map_err(IdentError::Drive)?;
         let steps = sine.steps();
         let total = steps.last().map_or(0.0, |s| s.end_s);
         let n = (total / opt.dt_s).floor() as usize;
@@ -106,13 +107,12 @@ pub fn sweep(model: &Model, opt: &SweepOptions) -> Result<SweepDataset, String> 
         }
         let effects = model.plant_effects_for_run(r)?;
         let s = sim::simulate_sweep(spec, &effects, &command, opt.dt_s, opt.substeps)
-            .map_err(|e| e.to_string())?;
-        let noise = |ch: u64, x: &[f64]| -> Result<Vec<f64>, String> {
+            .map_err(IdentError::Drive)?;
+        let noise = |ch: u64, x: &[f64]| -> Result<Vec<f64>, IdentError> {
             let mut g = GaussianNoise::new(
                 opt.tension_noise_n,
                 opt.seed.wrapping_mul(1000) + r as u64 * 10 + ch,
-            )
-            .map_err(|e| e.to_string())?;
+            )?;
             Ok(g.noisy(x))
         };
         let (t1, t2, t3, t4) = if opt.tension_channels {
@@ -184,12 +184,12 @@ impl RelaxationOptions {
 }
 
 /// A synthetic relaxation test of `model`.
-pub fn relaxation(model: &Model, opt: &RelaxationOptions) -> Result<RelaxationDataset, String> {
+pub fn relaxation(model: &Model, opt: &RelaxationOptions) -> Result<RelaxationDataset, IdentError> {
     let n = (opt.duration_s / opt.dt_s).round() as usize + 1;
     let time_s: Vec<f64> = (0..n).map(|i| i as f64 * opt.dt_s).collect();
     let (law, _) = model.law_for_run(0)?;
-    let f = sim::simulate_relaxation(&law, opt.strain, &time_s).map_err(|e| e.to_string())?;
-    let mut g = GaussianNoise::new(opt.tension_noise_n, opt.seed).map_err(|e| e.to_string())?;
+    let f = sim::simulate_relaxation(&law, opt.strain, &time_s).map_err(IdentError::Drive)?;
+    let mut g = GaussianNoise::new(opt.tension_noise_n, opt.seed)?;
     Ok(RelaxationDataset {
         specimen: RelaxationSpecimen {
             rope: opt.rope.clone(),
@@ -261,20 +261,21 @@ fn cyclic_strain(t: f64, lo: f64, hi: f64, rate: f64) -> f64 {
 }
 
 /// A synthetic cyclic test of `model` (its values for run `r` apply to run `r`).
-pub fn cyclic(model: &Model, opt: &CyclicOptions) -> Result<CyclicDataset, String> {
+pub fn cyclic(model: &Model, opt: &CyclicOptions) -> Result<CyclicDataset, IdentError> {
     if !(opt.strain_rate_per_s > 0.0 && opt.dt_s > 0.0) {
-        return Err(format!(
-            "cyclic test: strain rate {} 1/s and dt {} s must be > 0",
-            opt.strain_rate_per_s, opt.dt_s
-        ));
+        return Err(IdentError::CyclicRates {
+            strain_rate_per_s: opt.strain_rate_per_s,
+            dt_s: opt.dt_s,
+        });
     }
     let mut runs = Vec::new();
     for (r, &(lo, hi)) in opt.runs.iter().enumerate() {
         if !(0.0 <= lo && lo < hi) {
-            return Err(format!(
-                "cyclic run {}: need 0 <= lower strain {lo} < upper strain {hi}",
-                r + 1
-            ));
+            return Err(IdentError::CyclicStrains {
+                run: r + 1,
+                lower: lo,
+                upper: hi,
+            });
         }
         let duration = hi / opt.strain_rate_per_s
             + 2.0 * opt.cycles as f64 * (hi - lo) / opt.strain_rate_per_s;
@@ -285,9 +286,9 @@ pub fn cyclic(model: &Model, opt: &CyclicOptions) -> Result<CyclicDataset, Strin
             .map(|&t| cyclic_strain(t, lo, hi, opt.strain_rate_per_s))
             .collect();
         let (law, _) = model.law_for_run(r)?;
-        let f = sim::simulate_cyclic(&law, &time_s, &strain).map_err(|e| e.to_string())?;
-        let mut g = GaussianNoise::new(opt.tension_noise_n, opt.seed.wrapping_mul(1000) + r as u64)
-            .map_err(|e| e.to_string())?;
+        let f = sim::simulate_cyclic(&law, &time_s, &strain).map_err(IdentError::Drive)?;
+        let mut g =
+            GaussianNoise::new(opt.tension_noise_n, opt.seed.wrapping_mul(1000) + r as u64)?;
         runs.push(CyclicRun {
             name: format!("cyclic_{:02}", r + 1),
             file: format!("cyclic_{:02}.csv", r + 1),

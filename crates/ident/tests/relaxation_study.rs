@@ -5,7 +5,7 @@
 //! `cargo test -p longreach-ident --release --test relaxation_study -- --ignored --nocapture`
 //! (about 10 s in release; the numbers are in docs/models.md).
 
-use longreach_ident::fitting::{fit, FitOptions, ParamSpec, Residuals};
+use longreach_ident::fitting::{fit, FitOptions, ParamSpec, ResidualError, Residuals};
 use longreach_ident::{Dataset, DatasetKind, GaussianNoise};
 use longreach_rope::{relaxation_tension_n, Catalog};
 
@@ -18,7 +18,7 @@ struct Relaxation {
 }
 
 impl Residuals for Relaxation {
-    fn residuals(&self, p: &[f64], out: &mut Vec<f64>) -> Result<(), String> {
+    fn residuals(&self, p: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
         out.clear();
         out.extend(self.t.iter().zip(&self.f).zip(&self.w).map(|((&t, f), w)| {
             w * (relaxation_tension_n(p[0], p[1], p[2], p[3], self.strain, t) - f)

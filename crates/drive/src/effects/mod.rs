@@ -86,8 +86,8 @@ mod nonlinear_stiffness;
 mod plastic_ratchet;
 mod relay_friction;
 
-pub use extra_retardation::ExtraRetardation;
 pub use crate::transmission::{JointForce, JointTorque};
+pub use extra_retardation::ExtraRetardation;
 pub use internal_damping::InternalDamping;
 pub use joint_friction::{BearingFriction, JointFriction};
 pub use nonlinear_creep::NonlinearCreepEffect;

@@ -58,12 +58,12 @@ pub mod spec;
 pub mod state;
 pub mod step;
 
+pub use load::{JointForce, JointLoad, JointTorque};
 pub use pair::{CompiledPair, PairAtRest, StaticPair};
 pub use relay::{CompiledRelays, RelayFriction, RelayRule, RelayState, RelayTorque};
 pub use spec::{MotorMode, MotorSpec, PairSpec, Relay, RoutingMatrix, Tensioner};
 pub use state::PlantState;
-pub use load::{JointForce, JointLoad, JointTorque};
 pub use step::{
-    Drivetrain, DrivetrainEnergy, JointSide, MotorInputs, MAX_KEPT_STEPS,
-    NEWTON_TOLERANCE, RELAY_NEWTON_TOLERANCE,
+    Drivetrain, DrivetrainEnergy, JointSide, MotorInputs, MAX_KEPT_STEPS, NEWTON_TOLERANCE,
+    RELAY_NEWTON_TOLERANCE,
 };

@@ -8,9 +8,9 @@ use std::path::PathBuf;
 
 use longreach_drive::effects::{self, DataKind};
 use longreach_ident::analysis::{compare, diagnose, fit_model, Prepared};
-use longreach_ident::model::Model;
-use longreach_ident::synth::{self, RelaxationOptions};
-use longreach_ident::Dataset;
+use longreach_ident::model::{Model, ModelError, ParamDef};
+use longreach_ident::synth::{self, CyclicOptions, RelaxationOptions};
+use longreach_ident::{Dataset, IdentError};
 use longreach_rope::Catalog;
 
 fn example(name: &str) -> PathBuf {
@@ -128,6 +128,63 @@ fn short_relaxation(model: &Model, seed: u64) -> Dataset {
 fn relax_base() -> Model {
     let ds = Dataset::load(example("example_relax_control")).unwrap();
     Model::baseline(&ds).unwrap()
+}
+
+/// The loop's errors are typed values (a model's unknown base parameter, an effect
+/// refusing its values, a synthetic test's options) whose messages are the ones the CLI
+/// prints.
+#[test]
+fn errors_are_typed_and_keep_their_messages() {
+    let mut m = relax_base();
+    m.base.push(ParamDef {
+        name: "bogus".into(),
+        ..m.base[0].clone()
+    });
+    let e = m.law_for_run(0).unwrap_err();
+    assert!(
+        matches!(&e, ModelError::UnknownBaseParam { name } if name == "bogus"),
+        "{e:?}"
+    );
+    assert_eq!(e.to_string(), "unknown base parameter `bogus`");
+    // the analysis hands the model's error on as it is
+    let ds = Dataset::load(example("example_relax_control")).unwrap();
+    let prep = Prepared::new(&ds).unwrap();
+    let e = prep.simulate(&m).unwrap_err();
+    assert!(
+        matches!(e, IdentError::Model(ModelError::UnknownBaseParam { .. })),
+        "{e:?}"
+    );
+    assert_eq!(e.to_string(), "unknown base parameter `bogus`");
+
+    let mut m = relax_base().with_effect(effects::find("internal_damping").unwrap());
+    m.effects[0].params[0].value = -1.0;
+    let e = m.law_for_run(0).unwrap_err();
+    assert!(
+        matches!(
+            &e,
+            ModelError::Effect {
+                effect: "internal_damping",
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    let msg = e.to_string();
+    assert!(
+        msg.starts_with("effect internal_damping: ") && msg.contains("internal_damping.c1_n_s"),
+        "{msg}"
+    );
+
+    let opt = CyclicOptions {
+        strain_rate_per_s: 0.0,
+        ..CyclicOptions::paper("dyneema2", 1)
+    };
+    let e = synth::cyclic(&relax_base(), &opt).unwrap_err();
+    assert!(matches!(e, IdentError::CyclicRates { .. }), "{e:?}");
+    assert_eq!(
+        e.to_string(),
+        "cyclic test: strain rate 0 1/s and dt 0.05 s must be > 0"
+    );
 }
 
 #[test]

@@ -2,7 +2,8 @@
 //! and independence from the thread count.
 
 use longreach_ident::{
-    fit, Dataset, DatasetKind, FitError, FitOptions, GaussianNoise, ParamSpec, Residuals,
+    fit, Dataset, DatasetKind, FitError, FitOptions, GaussianNoise, ParamSpec, ResidualError,
+    Residuals,
 };
 
 /// y = a exp(-t / tau) + noise
@@ -24,7 +25,7 @@ impl Decay {
 }
 
 impl Residuals for Decay {
-    fn residuals(&self, p: &[f64], out: &mut Vec<f64>) -> Result<(), String> {
+    fn residuals(&self, p: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
         out.clear();
         out.extend(
             self.t
@@ -112,7 +113,7 @@ fn unbounded_linear_parameters() {
     // a straight line: exact linear least squares to compare with
     struct Line(Vec<f64>, Vec<f64>);
     impl Residuals for Line {
-        fn residuals(&self, p: &[f64], out: &mut Vec<f64>) -> Result<(), String> {
+        fn residuals(&self, p: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
             out.clear();
             out.extend(self.0.iter().zip(&self.1).map(|(x, y)| p[0] + p[1] * x - y));
             Ok(())
@@ -166,7 +167,7 @@ struct Relaxation {
 }
 
 impl Residuals for Relaxation {
-    fn residuals(&self, p: &[f64], out: &mut Vec<f64>) -> Result<(), String> {
+    fn residuals(&self, p: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
         out.clear();
         out.extend(
             self.t
@@ -286,7 +287,7 @@ fn relaxation_fit_recovers_catalog_dyneema2() {
 fn nan_residuals_name_the_parameters() {
     struct Bad;
     impl Residuals for Bad {
-        fn residuals(&self, p: &[f64], out: &mut Vec<f64>) -> Result<(), String> {
+        fn residuals(&self, p: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
             out.clear();
             out.extend([p[0] - 1.0, p[1], if p[0] > 0.5 { f64::NAN } else { 0.0 }]);
             Ok(())
@@ -309,7 +310,7 @@ fn nan_residuals_name_the_parameters() {
 fn model_errors_and_bad_specs() {
     struct Fails;
     impl Residuals for Fails {
-        fn residuals(&self, _: &[f64], _: &mut Vec<f64>) -> Result<(), String> {
+        fn residuals(&self, _: &[f64], _: &mut Vec<f64>) -> Result<(), ResidualError> {
             Err("rope went slack beyond recovery".into())
         }
     }
@@ -342,7 +343,7 @@ fn model_errors_and_bad_specs() {
 
     struct Short;
     impl Residuals for Short {
-        fn residuals(&self, p: &[f64], out: &mut Vec<f64>) -> Result<(), String> {
+        fn residuals(&self, p: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
             out.clear();
             out.push(p[0]);
             Ok(())
@@ -385,9 +386,9 @@ fn result_does_not_depend_on_thread_count() {
 fn failed_trial_points_are_rejected_steps() {
     struct Edge;
     impl Residuals for Edge {
-        fn residuals(&self, p: &[f64], out: &mut Vec<f64>) -> Result<(), String> {
+        fn residuals(&self, p: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
             if p[0] > 2.0 {
-                return Err(format!("solver did not converge at x = {}", p[0]));
+                return Err(format!("solver did not converge at x = {}", p[0]).into());
             }
             out.clear();
             out.extend([p[0] - 2.5, 0.5 * (p[0] - 2.5), 0.1]);

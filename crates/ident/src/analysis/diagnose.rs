@@ -1,0 +1,432 @@
+//! Diagnosis: the baseline and every applicable registered effect fitted and ranked by
+//! BIC, the decision rule (the constants below) and the verdict in words.
+
+use longreach_drive::effects::{DataKind, REGISTRY};
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::{
+    compare, fit_model, screen_model, Comparison, Fitted, Prepared, RunError, RunResonance, Where,
+};
+use crate::error::IdentError;
+use crate::metrics;
+use crate::model::Model;
+
+/// One candidate effect of a diagnosis.
+#[derive(Debug, Clone, Serialize)]
+pub struct Candidate {
+    /// Effect name.
+    pub effect: String,
+    /// NRMSE of baseline + effect, fitted (or screened, see `screened`).
+    pub nrmse: f64,
+    /// Score: BIC improvement over the baseline, `n ln(SSR_b / SSR_c) - dk ln n`.
+    pub score: f64,
+    /// Share of the baseline's excess squared error (above the noise floor) explained.
+    pub explained: f64,
+    /// Fitted parameters (baseline's and the effect's).
+    pub params: std::collections::BTreeMap<String, f64>,
+    /// True for the winner when the evidence is decisive.
+    pub decisive: bool,
+    /// True when the candidate was only screened ([`screen_model`]: its starting values,
+    /// one simulation) because the baseline already fits to the noise floor.
+    pub screened: bool,
+    /// Why the fit failed, if it did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+/// The baseline part of a diagnosis.
+#[derive(Debug, Clone, Serialize)]
+pub struct BaselineSummary {
+    /// NRMSE after fitting.
+    pub nrmse: f64,
+    /// Noise floor on the NRMSE scale.
+    pub noise_floor_nrmse: f64,
+    /// Fitted parameters.
+    pub params: std::collections::BTreeMap<String, f64>,
+    /// Their standard errors.
+    pub std_errors: std::collections::BTreeMap<String, f64>,
+}
+
+/// The result of `diagnose`.
+#[derive(Debug, Clone, Serialize)]
+pub struct Diagnosis {
+    /// Dataset title.
+    pub dataset: String,
+    /// Baseline.
+    pub baseline: BaselineSummary,
+    /// Where the baseline fails.
+    #[serde(rename = "where")]
+    pub where_: Vec<Where>,
+    /// Candidates, best first.
+    pub candidates: Vec<Candidate>,
+    /// The missing effect when decisive.
+    pub missing_effect: Option<String>,
+    /// The verdict in words.
+    pub explanation: String,
+    /// The baseline's comparison (residual checks, resonances).
+    pub comparison: Comparison,
+    /// NRMSE of the model with the winning effect (null when none).
+    pub nrmse_after: Option<f64>,
+}
+
+/// Fraction of the baseline's excess squared error a decisive winner must explain.
+pub const MIN_EXPLAINED: f64 = 0.5;
+/// Baseline NRMSE above this multiple of the noise floor is a failure worth diagnosing
+/// (the squared error 10% above the floor: beyond the floor estimate's own scatter,
+/// ~2% for a few thousand samples, and the sweep simulation's time-step error, ~2% of
+/// the floor's squared error at 2.5 ms; see `docs/models.md`).
+pub const FLOOR_MARGIN: f64 = 1.05;
+/// Least score (BIC improvement over the baseline) of a decisive winner: "very strong"
+/// evidence on the scale of Kass and Raftery (1995), `2 ln B > 10`.
+pub const MIN_SCORE: f64 = 10.0;
+/// Least score lead of a decisive winner over the second candidate beyond one
+/// parameter's BIC penalty `ln n` (n: analysed samples): two effects that fit equally
+/// well differ by their parameter counts alone, `ln n` per parameter; the data must
+/// favour the winner "very strongly" over the next explanation, not only over the
+/// baseline.
+pub const MIN_SCORE_GAP: f64 = 10.0;
+
+/// Fits the baseline and every applicable registered effect; ranks and decides.
+/// Returns the diagnosis and the winning model (if any).
+pub fn diagnose(
+    prep: &Prepared<'_>,
+    model: &Model,
+) -> Result<(Diagnosis, Fitted, Option<Fitted>), IdentError> {
+    let base = fit_model(prep, model)?;
+    let cmp = compare(prep, &base.model, &base.sims)?;
+    let n = prep.n_samples() as f64;
+    let k_base = base.model.fit_specs(prep.runs.len()).len();
+    let ssr_floor = prep
+        .runs
+        .iter()
+        .map(|r| r.noise_sigma.powi(2) * r.idx.len() as f64)
+        .sum::<f64>();
+    let effects: Vec<_> = REGISTRY
+        .iter()
+        .copied()
+        .filter(|e| e.applies_to(prep.kind) && !base.model.has_effect(*e))
+        .collect();
+    // At the noise floor no candidate can be decisive: screen them (starting values,
+    // one simulation each) instead of fitting them in the time domain.
+    let at_floor = base.nrmse <= FLOOR_MARGIN * base.noise_floor;
+    let fits: Vec<(String, Result<Fitted, IdentError>)> = effects
+        .par_iter()
+        .map(|e| {
+            let m = base.model.with_effect(*e);
+            let f = if at_floor {
+                screen_model(prep, &m)
+            } else {
+                fit_model(prep, &m)
+            };
+            (e.name().to_string(), f)
+        })
+        .collect();
+    let excess = (base.ssr - ssr_floor).max(0.0);
+    let mut cands: Vec<(Candidate, Option<Fitted>)> = fits
+        .into_iter()
+        .map(|(name, r)| match r {
+            Ok(f) => {
+                let dk = f
+                    .model
+                    .fit_specs(prep.runs.len())
+                    .len()
+                    .saturating_sub(k_base) as f64;
+                let ssr_c = f.ssr.min(base.ssr);
+                let score = n * (base.ssr / ssr_c.max(f64::MIN_POSITIVE)).ln() - dk * n.ln();
+                let explained = if excess > 0.0 {
+                    (base.ssr - ssr_c) / excess
+                } else {
+                    0.0
+                };
+                (
+                    Candidate {
+                        effect: name,
+                        nrmse: f.nrmse,
+                        score,
+                        explained: explained.min(1.5),
+                        params: f.model.named_values().into_iter().collect(),
+                        decisive: false,
+                        screened: at_floor,
+                        error: None,
+                    },
+                    Some(f),
+                )
+            }
+            Err(err) => (
+                Candidate {
+                    effect: name,
+                    nrmse: f64::NAN,
+                    score: f64::NEG_INFINITY,
+                    explained: 0.0,
+                    params: Default::default(),
+                    decisive: false,
+                    screened: at_floor,
+                    error: Some(err.to_string()),
+                },
+                None,
+            ),
+        })
+        .collect();
+    cands.sort_by(|a, b| {
+        b.0.score
+            .total_cmp(&a.0.score)
+            .then(a.0.effect.cmp(&b.0.effect))
+    });
+    let decisive = !at_floor
+        && cands.first().is_some_and(|(best, fit)| {
+            let gap = cands
+                .get(1)
+                .map_or(f64::INFINITY, |(second, _)| best.score - second.score);
+            // The winner reaches the floor, or leaves at most half the excess the
+            // second leaves: a lead in score between two candidates that both stop far
+            // above the floor may be a fit that stopped early, not evidence.
+            let best_ssr = fit.as_ref().map_or(f64::INFINITY, |f| f.ssr);
+            let reaches_floor = best_ssr <= FLOOR_MARGIN * FLOOR_MARGIN * ssr_floor;
+            let second_left = cands
+                .get(1)
+                .and_then(|(_, f)| f.as_ref())
+                .map_or(base.ssr, |f| f.ssr.min(base.ssr));
+            let separated = second_left - ssr_floor >= 2.0 * (best_ssr - ssr_floor).max(0.0);
+            best.explained >= MIN_EXPLAINED
+                && best.score > MIN_SCORE
+                && gap >= MIN_SCORE_GAP + n.ln()
+                && (reaches_floor || separated)
+        });
+    let mut winner = None;
+    if decisive {
+        cands[0].0.decisive = true;
+        winner = cands[0].1.take();
+    }
+    let missing = decisive.then(|| cands[0].0.effect.clone());
+    let explanation = explain(
+        prep,
+        &base,
+        &cmp,
+        &cands.iter().map(|c| c.0.clone()).collect::<Vec<_>>(),
+        missing.as_deref(),
+        at_floor,
+    );
+    let diag = Diagnosis {
+        dataset: prep.ds.title.clone(),
+        baseline: BaselineSummary {
+            nrmse: base.nrmse,
+            noise_floor_nrmse: base.noise_floor,
+            params: base.model.named_values().into_iter().collect(),
+            std_errors: base
+                .fit
+                .as_ref()
+                .map(|f| {
+                    f.names
+                        .iter()
+                        .cloned()
+                        .zip(f.std_errors.iter().copied())
+                        .collect()
+                })
+                .unwrap_or_default(),
+        },
+        where_: cmp.where_.clone(),
+        candidates: cands.iter().map(|c| c.0.clone()).collect(),
+        missing_effect: missing,
+        nrmse_after: winner.as_ref().map(|w: &Fitted| w.nrmse),
+        explanation,
+        comparison: cmp,
+    };
+    Ok((diag, base, winner))
+}
+
+fn explain(
+    prep: &Prepared<'_>,
+    base: &Fitted,
+    cmp: &Comparison,
+    cands: &[Candidate],
+    missing: Option<&str>,
+    at_floor: bool,
+) -> String {
+    let mut s = String::new();
+    let ratio = base.nrmse / base.noise_floor.max(f64::MIN_POSITIVE);
+    if at_floor {
+        s.push_str(&format!(
+            "The baseline fits to the noise floor (NRMSE {:.4}, {:.2}x the floor {:.4} of the sensors): no missing effect is needed; none found (the candidates were screened at their starting values, not fitted).",
+            base.nrmse, ratio, base.noise_floor
+        ));
+        return s;
+    }
+    s.push_str(&format!(
+        "The baseline misses the data: NRMSE {:.4} is {:.1}x the noise floor {:.4}. ",
+        base.nrmse, ratio, base.noise_floor
+    ));
+    if let Some(w) = cmp.where_.first() {
+        match w.frequency_hz {
+            Some(f) => s.push_str(&format!(
+                "The largest share of the error ({:.0}%) is in run {} at {:.2} Hz. ",
+                100.0 * w.share,
+                w.run,
+                f
+            )),
+            None => s.push_str(&format!(
+                "The largest share of the error ({:.0}%) is in run {} between {:.1} and {:.1} s. ",
+                100.0 * w.share,
+                w.run,
+                w.start_s,
+                w.end_s
+            )),
+        }
+    }
+    // Evidence from the data, by kind.
+    if prep.kind == DataKind::SineSweep {
+        let mut res: Vec<&RunResonance> = cmp
+            .resonance
+            .iter()
+            .filter(|r| r.measured_hz.is_some() && r.model_hz.is_some())
+            .collect();
+        res.sort_by(|a, b| a.mean_tension_n.total_cmp(&b.mean_tension_n));
+        if let (Some(lo), Some(hi)) = (res.first(), res.last()) {
+            if hi.mean_tension_n > lo.mean_tension_n {
+                let (ml, mh) = (lo.measured_hz.unwrap_or(0.0), hi.measured_hz.unwrap_or(0.0));
+                let (yl, yh) = (lo.model_hz.unwrap_or(0.0), hi.model_hz.unwrap_or(0.0));
+                s.push_str(&format!(
+                    "The measured resonance moves from {ml:.2} to {mh:.2} Hz between {:.0} and {:.0} N while the model goes from {yl:.2} to {yh:.2} Hz",
+                    lo.mean_tension_n, hi.mean_tension_n
+                ));
+                let moved = (mh / ml).ln() - (yh / yl).ln();
+                if moved > 0.03 {
+                    s.push_str(": the rope's stiffness depends on its tension. ");
+                } else {
+                    s.push_str(". ");
+                }
+                let dpk: f64 = res
+                    .iter()
+                    .map(|r| r.model_peak_db.unwrap_or(0.0) - r.measured_peak_db.unwrap_or(0.0))
+                    .sum::<f64>()
+                    / res.len() as f64;
+                if dpk.abs() > 1.0 {
+                    s.push_str(&format!(
+                        "The model's resonance peak is {:.1} dB {} than measured on average{}. ",
+                        dpk.abs(),
+                        if dpk > 0.0 { "higher" } else { "lower" },
+                        if dpk > 0.0 {
+                            ": the rope dissipates more than the model"
+                        } else {
+                            ""
+                        }
+                    ));
+                }
+            }
+        }
+    } else {
+        let r = &cmp.residual;
+        s.push_str(&format!(
+            "The residual correlates with time at {:.2} (drift) and is {}white (Ljung-Box p = {:.2e}). ",
+            r.corr_time,
+            if r.ljung_box_p < 0.05 { "not " } else { "" },
+            r.ljung_box_p
+        ));
+    }
+    match (missing, cands.first()) {
+        (Some(m), Some(best)) => {
+            let after = best.nrmse;
+            s.push_str(&format!(
+                "Adding {m} explains {:.0}% of the excess error and brings the NRMSE from {:.4} to {:.4} ({:.1}x lower); ",
+                100.0 * best.explained.min(1.0),
+                base.nrmse,
+                after,
+                base.nrmse / after.max(f64::MIN_POSITIVE)
+            ));
+            if let Some(second) = cands.get(1) {
+                s.push_str(&format!(
+                    "the next best, {}, explains {:.0}%.",
+                    second.effect,
+                    100.0 * second.explained.clamp(0.0, 1.0)
+                ));
+            }
+        }
+        (_, best) => {
+            if let Some(b) = best {
+                s.push_str(&format!(
+                    "No registered effect explains the failure decisively (best: {}, explaining {:.0}% of the excess error). ",
+                    b.effect,
+                    100.0 * b.explained.clamp(0.0, 1.0)
+                ));
+                if let Some(second) = cands.get(1) {
+                    if b.explained >= MIN_EXPLAINED && second.explained >= MIN_EXPLAINED {
+                        s.push_str(&format!(
+                            "{} and {} both explain it (scores {:.1} and {:.1}): these data cannot tell them apart (a test of another kind or frequency range can; see docs/models.md). ",
+                            b.effect, second.effect, b.score, second.score
+                        ));
+                    }
+                }
+            } else {
+                s.push_str("No registered effect applies to this kind of data. ");
+            }
+            s.push_str(&signature(cmp));
+        }
+    }
+    s
+}
+
+/// A description of the residual's signature.
+fn signature(cmp: &Comparison) -> String {
+    let mut parts = Vec::new();
+    let r = &cmp.residual;
+    if cmp.frequency.len() >= 4 {
+        // phase error vs frequency: proportional growth means a pure delay
+        let (f, p): (Vec<f64>, Vec<f64>) = cmp
+            .frequency
+            .iter()
+            .map(|x| (x.frequency_hz, x.phase_error_deg))
+            .unzip();
+        if let Ok(c) = metrics::pearson(&f, &p) {
+            if c.abs() > 0.8 {
+                parts.push(format!("phase error grows with frequency (correlation {c:.2}): a delay or missing dissipation"));
+            }
+        }
+    }
+    if let Some(c) = r.corr_mean_tension {
+        if c.abs() > 0.7 {
+            parts.push(format!(
+                "error {} with mean tension (correlation {c:.2})",
+                if c > 0.0 { "grows" } else { "falls" }
+            ));
+        }
+    }
+    if r.corr_velocity_sign.abs() > 0.2 {
+        parts.push(format!(
+            "residual follows the sign of the velocity ({:.2}): friction",
+            r.corr_velocity_sign
+        ));
+    }
+    if r.harmonic_2f > 0.02 || r.harmonic_3f > 0.02 {
+        parts.push(format!(
+            "harmonics in the residual (2f: {:.1}%, 3f: {:.1}%): a non-linearity",
+            100.0 * r.harmonic_2f,
+            100.0 * r.harmonic_3f
+        ));
+    }
+    if r.corr_time.abs() > 0.3 {
+        parts.push(format!("drift over time (correlation {:.2})", r.corr_time));
+    }
+    let amp: Vec<&RunError> = cmp
+        .runs
+        .iter()
+        .filter(|x| x.amplitude_rad.is_some())
+        .collect();
+    if amp.len() >= 2 {
+        let mut by = amp.clone();
+        by.sort_by(|a, b| {
+            a.amplitude_rad
+                .unwrap_or(0.0)
+                .total_cmp(&b.amplitude_rad.unwrap_or(0.0))
+        });
+        let (lo, hi) = (by[0], by[by.len() - 1]);
+        if hi.amplitude_rad > lo.amplitude_rad && (hi.nrmse / lo.nrmse.max(1e-12)).ln().abs() > 0.7
+        {
+            parts.push(format!("the error depends on the amplitude (NRMSE {:.3} at {:.3} rad vs {:.3} at {:.3} rad)", lo.nrmse, lo.amplitude_rad.unwrap_or(0.0), hi.nrmse, hi.amplitude_rad.unwrap_or(0.0)));
+        }
+    }
+    if parts.is_empty() {
+        "Residual signature: no clear pattern (white-ish, no harmonics, no drift).".into()
+    } else {
+        format!("Residual signature: {}.", parts.join("; "))
+    }
+}

@@ -1,0 +1,436 @@
+//! Fitting a model's free parameters to a dataset: the starting values (a grid, for
+//! sweeps scored and refined on the analytic frequency response), least squares on the
+//! time-domain simulation, and the screening of a model at its starting values alone.
+
+use longreach_drive::effects::DataKind;
+use num_complex::Complex64;
+use rayon::prelude::*;
+
+use super::compare::dft;
+use super::prepare::Prepared;
+use crate::dataset::DatasetKind;
+use crate::error::IdentError;
+use crate::fitting::{fit, FitOptions, FitResult, ResidualError, Residuals};
+use crate::model::Model;
+use crate::sim;
+
+struct Problem<'p, 'a> {
+    prep: &'p Prepared<'a>,
+    model: &'p Model,
+}
+
+impl Residuals for Problem<'_, '_> {
+    fn residuals(&self, params: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
+        let m = self.model.with_values(params, self.prep.runs.len());
+        let sims = self.prep.simulate(&m)?;
+        *out = self.prep.residuals_of(&sims);
+        Ok(())
+    }
+}
+
+/// Outcome of fitting a model.
+#[derive(Debug, Clone)]
+pub struct Fitted {
+    /// The model with its fitted values.
+    pub model: Model,
+    /// The optimiser's result (`None` when nothing was fitted).
+    pub fit: Option<FitResult>,
+    /// Overall NRMSE before the fit (at the starting values).
+    pub nrmse_before: f64,
+    /// Overall NRMSE after.
+    pub nrmse: f64,
+    /// Noise floor on the NRMSE scale.
+    pub noise_floor: f64,
+    /// Sum of squared residuals after.
+    pub ssr: f64,
+    /// The simulated channel of every run after the fit.
+    pub sims: Vec<Vec<f64>>,
+}
+
+/// Measured frequency response of every (run, test frequency) of a sweep.
+fn measured_frf(prep: &Prepared<'_>) -> Vec<(usize, f64, Complex64)> {
+    let DatasetKind::SineSweep(sw) = &prep.ds.kind else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for (r, run) in prep.runs.iter().enumerate() {
+        let input = sim::drive_input(&sw.runs[r]);
+        for &(f, a, b) in &run.segments {
+            let x = dft(&input[a..b], run.dt_s, f);
+            let y = dft(&run.measured[a..b], run.dt_s, f);
+            if x.norm() > 0.0 && y.norm() > 0.0 {
+                out.push((r, f, y / x));
+            }
+        }
+    }
+    out
+}
+
+/// Log-ratio residuals of the analytic small-signal response (eqs. 12-13, each rope
+/// law's tangent at the run's mean tension) against the measured one.
+struct FrfProblem<'p, 'a> {
+    prep: &'p Prepared<'a>,
+    model: &'p Model,
+    points: Vec<(usize, f64, Complex64)>,
+}
+
+impl FrfProblem<'_, '_> {
+    fn eval(&self, x: &[f64], out: &mut Vec<f64>) -> Result<(), IdentError> {
+        let DatasetKind::SineSweep(sw) = &self.prep.ds.kind else {
+            return Err(IdentError::NotASweep {
+                kind: self.prep.ds.kind.name(),
+            });
+        };
+        let m = self.model.with_values(x, self.prep.runs.len());
+        let specs: Vec<longreach_drive::RigSpec> = (0..self.prep.runs.len())
+            .map(|r| {
+                let (law, damping) = m.law_for_run(r)?;
+                let mut spec = sim::drive_rig(&sw.rig, law, sw.runs[r].mean_tension_n);
+                if let Some(c) = damping {
+                    spec.output_damping_n_m_s = c;
+                }
+                Ok(spec)
+            })
+            .collect::<Result<_, IdentError>>()?;
+        out.clear();
+        for &(r, f, h) in &self.points {
+            let d = (longreach_drive::rig_transfer(&specs[r], f) / h).ln();
+            out.push(d.re);
+            out.push(d.im);
+        }
+        Ok(())
+    }
+}
+
+impl Residuals for FrfProblem<'_, '_> {
+    fn residuals(&self, params: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
+        Ok(self.eval(params, out)?)
+    }
+}
+
+/// Starting values: a grid over the free parameters (9 points each for sweeps, 5
+/// otherwise, plus the starting value; log-spaced where the parameter is, at most 3
+/// parameters gridded: the effect's and `k1_scale`), scored by the analytic response
+/// for sweeps (then refined by least squares on it) and by the simulation for the other
+/// kinds. Deterministic.
+///
+/// Sweeps: a gridded parameter the analytic response cannot see (every cost of the grid
+/// is the same along its axis: `relay_friction` acts on the rig, and dry friction has no
+/// amplitude-independent transfer function) would start at the first point of its
+/// axis, whatever the data. With `scan_hidden`, such parameters are instead scanned on
+/// the time-domain simulation, one at a time along their grid axis (the others at the
+/// analytic start, the hidden ones at their starting values until scanned), and the
+/// best point is kept.
+fn starting_values(
+    prep: &Prepared<'_>,
+    model: &Model,
+    scan_hidden: bool,
+) -> Result<Vec<Vec<f64>>, IdentError> {
+    let specs = model.fit_specs(prep.runs.len());
+    let mut x0: Vec<f64> = specs.iter().map(|s| s.initial).collect();
+    let slots = model.free_slots(prep.runs.len());
+    let gridded: Vec<usize> = (0..specs.len())
+        .filter(|&i| {
+            matches!(slots[i].owner, crate::model::Owner::Effect(_))
+                || (prep.kind == DataKind::SineSweep && specs[i].name == "k1_scale")
+        })
+        .take(3)
+        .collect();
+    if gridded.is_empty() {
+        return Ok(vec![x0]);
+    }
+    let sweep = prep.kind == DataKind::SineSweep;
+    let npts = if sweep { 9 } else { 5 };
+    let axis = |i: usize| -> Vec<f64> {
+        let s = &specs[i];
+        let (lo, hi) = (
+            s.lower,
+            s.upper.min(if s.log_scale {
+                s.lower * 1e6
+            } else {
+                f64::INFINITY
+            }),
+        );
+        let mut v: Vec<f64> = (0..npts)
+            .map(|k| {
+                let a = (k as f64 + 0.5) / npts as f64;
+                if s.log_scale && lo > 0.0 {
+                    (lo.ln() + a * (hi.ln() - lo.ln())).exp()
+                } else {
+                    lo + a * (hi - lo)
+                }
+            })
+            .collect();
+        v.push(s.initial);
+        v
+    };
+    let axes: Vec<Vec<f64>> = gridded.iter().map(|&i| axis(i)).collect();
+    let total: usize = axes.iter().map(|a| a.len()).product();
+    let points: Vec<Vec<f64>> = (0..total)
+        .map(|mut k| {
+            let mut x = x0.clone();
+            for (g, a) in gridded.iter().zip(&axes) {
+                x[*g] = a[k % a.len()];
+                k /= a.len();
+            }
+            x
+        })
+        .collect();
+    if sweep {
+        let problem = FrfProblem {
+            prep,
+            model,
+            points: measured_frf(prep),
+        };
+        let costs: Vec<f64> = points
+            .par_iter()
+            .map(|x| {
+                let mut r = Vec::new();
+                match problem.eval(x, &mut r) {
+                    Ok(()) => r.iter().map(|v| v * v).sum::<f64>(),
+                    Err(_) => f64::INFINITY,
+                }
+            })
+            .collect();
+        let best = (0..total)
+            .min_by(|&a, &b| costs[a].total_cmp(&costs[b]))
+            .unwrap_or(0);
+        x0 = points[best].clone();
+        let mut s2 = specs.clone();
+        for (s, &v) in s2.iter_mut().zip(&x0) {
+            let span = s.upper - s.lower;
+            s.initial = v.clamp(s.lower + 1e-6 * span, s.upper - 1e-6 * span);
+        }
+        if let Ok(r) = fit(
+            &problem,
+            &s2,
+            &FitOptions {
+                tolerance: 1e-8,
+                gtol: 1e-10,
+                patience: 60,
+                diff_step: 1e-6,
+            },
+        ) {
+            if r.ssr <= costs[best] {
+                x0 = r.values;
+            }
+        }
+        // Gridded parameters the analytic response cannot see: the cost of every grid
+        // point equals that of the point with this coordinate at its first value.
+        let hidden: Vec<usize> = (0..gridded.len())
+            .filter(|&g| {
+                let stride: usize = axes[..g].iter().map(|a| a.len()).product();
+                let len = axes[g].len();
+                (0..total).all(|k| {
+                    let digit = (k / stride) % len;
+                    costs[k].to_bits() == costs[k - digit * stride].to_bits()
+                })
+            })
+            .collect();
+        if scan_hidden && !hidden.is_empty() {
+            let sim_cost = |x: &Vec<f64>| -> f64 {
+                let m = model.with_values(x, prep.runs.len());
+                prep.simulate(&m)
+                    .map(|s| prep.residuals_of(&s).iter().map(|v| v * v).sum::<f64>())
+                    .unwrap_or(f64::INFINITY)
+            };
+            for &g in &hidden {
+                x0[gridded[g]] = specs[gridded[g]].initial;
+            }
+            let mut best_cost = f64::INFINITY;
+            for &g in &hidden {
+                let line: Vec<Vec<f64>> = axes[g]
+                    .iter()
+                    .map(|&v| {
+                        let mut x = x0.clone();
+                        x[gridded[g]] = v;
+                        x
+                    })
+                    .collect();
+                let line_costs: Vec<f64> = line.par_iter().map(sim_cost).collect();
+                if let Some(k) = (0..line.len())
+                    .min_by(|&a, &b| line_costs[a].total_cmp(&line_costs[b]).then(a.cmp(&b)))
+                {
+                    if line_costs[k] < best_cost {
+                        best_cost = line_costs[k];
+                        x0 = line[k].clone();
+                    }
+                }
+            }
+        }
+    } else {
+        // Two settings of the base constants: the baseline's fitted ones (in `points`)
+        // and the catalog's (a strong effect pulls the baseline's constants far from
+        // where the model with the effect has its optimum).
+        let law = &model.law;
+        let catalog: Vec<Option<f64>> = specs
+            .iter()
+            .enumerate()
+            .map(|(i, s)| {
+                if !matches!(slots[i].owner, crate::model::Owner::Base) {
+                    return None;
+                }
+                let v = match s.name.as_str() {
+                    "k1" => Some(law.k1_n),
+                    "c2" => law.c2_n_s,
+                    "k3" => law.kelvin.first().map(|k| k.k_n),
+                    "c3" => law.kelvin.first().map(|k| k.c_n_s),
+                    _ => None,
+                };
+                v.map(|v| v.clamp(s.lower, s.upper))
+            })
+            .collect();
+        let alt: Vec<Vec<f64>> = points
+            .iter()
+            .map(|x| {
+                x.iter()
+                    .zip(&catalog)
+                    .map(|(&v, c)| c.unwrap_or(v))
+                    .collect()
+            })
+            .collect();
+        let mut all = points;
+        if alt[0] != all[0] {
+            all.extend(alt);
+        }
+        let costs: Vec<f64> = all
+            .par_iter()
+            .map(|x| {
+                let m = model.with_values(x, prep.runs.len());
+                prep.simulate(&m)
+                    .map(|s| prep.residuals_of(&s).iter().map(|v| v * v).sum::<f64>())
+                    .unwrap_or(f64::INFINITY)
+            })
+            .collect();
+        let mut order: Vec<usize> = (0..all.len()).filter(|&k| costs[k].is_finite()).collect();
+        order.sort_by(|&a, &b| costs[a].total_cmp(&costs[b]).then(a.cmp(&b)));
+        // Multi-start: the best grid point with the baseline's constants, the same
+        // effect values with the catalog's, the best grid point with the catalog's,
+        // then the best points whose effect values differ from those taken (another
+        // basin: e.g. a second retardation time on either side of the rope's own); 4 at
+        // most.
+        let mut out: Vec<Vec<f64>> = Vec::new();
+        let mut taken_gridded: Vec<Vec<f64>> = Vec::new();
+        if let Some(&k) = order.iter().find(|&&k| k < total) {
+            out.push(all[k].clone());
+            // the same effect values with the catalog's constants
+            if all.len() > total {
+                out.push(all[k + total].clone());
+            }
+        }
+        if let Some(&k) = order.iter().find(|&&k| k >= total) {
+            if !out.contains(&all[k]) {
+                out.push(all[k].clone());
+            }
+        }
+        for x in &out {
+            let g: Vec<f64> = gridded.iter().map(|&i| x[i]).collect();
+            if !taken_gridded.contains(&g) {
+                taken_gridded.push(g);
+            }
+        }
+        for &k in &order {
+            if out.len() >= 4 {
+                break;
+            }
+            let g: Vec<f64> = gridded.iter().map(|&i| all[k][i]).collect();
+            if !taken_gridded.contains(&g) {
+                taken_gridded.push(g);
+                out.push(all[k].clone());
+            }
+        }
+        if out.is_empty() {
+            out.push(x0);
+        }
+        return Ok(out);
+    }
+    Ok(vec![x0])
+}
+
+/// Scores `model` at its starting values without the time-domain refinement: the
+/// starting grid (for sweeps refined on the analytic response) and one simulation per
+/// start; the best start is returned with `fit = None`. [`diagnose`](fn@super::diagnose)
+/// uses it for the candidates when the baseline already fits to the noise floor: no
+/// candidate can be decisive then, and the time-domain fits (of a non-linear law above
+/// all) are the dearest part of a diagnosis.
+pub fn screen_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, IdentError> {
+    let starts = starting_values(prep, model, false)?;
+    let scored: Vec<Result<(Model, Vec<Vec<f64>>, f64), IdentError>> = starts
+        .par_iter()
+        .map(|x| {
+            let m = model.with_values(x, prep.runs.len());
+            let sims = prep.simulate(&m)?;
+            let ssr = prep.residuals_of(&sims).iter().map(|e| e * e).sum();
+            Ok((m, sims, ssr))
+        })
+        .collect();
+    let (fitted_model, sims, ssr) = scored
+        .into_iter()
+        .filter_map(Result::ok)
+        .min_by(|a, b| a.2.total_cmp(&b.2))
+        .ok_or(IdentError::NoStartSimulated {
+            starts: starts.len(),
+        })?;
+    let (nrmse, noise_floor) = prep.overall(&sims);
+    Ok(Fitted {
+        model: fitted_model,
+        fit: None,
+        nrmse_before: nrmse,
+        nrmse,
+        noise_floor,
+        ssr,
+        sims,
+    })
+}
+
+/// Fits the free parameters of `model` to the dataset.
+pub fn fit_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, IdentError> {
+    let sims0 = prep.simulate(model)?;
+    let (nrmse_before, noise_floor) = prep.overall(&sims0);
+    let starts = starting_values(prep, model, true)?;
+    let mut best: Option<(Model, Option<FitResult>, f64)> = None;
+    for start in &starts {
+        let model_start = model.with_values(start, prep.runs.len());
+        let model = &model_start;
+        let specs = model.fit_specs(prep.runs.len());
+        let expensive = prep.kind == DataKind::SineSweep
+            && model.law_for_run(0).is_ok_and(|(l, _)| !l.is_linear());
+        let (fitted_model, fit_res) = if specs.is_empty() {
+            (model.clone(), None)
+        } else {
+            let opts = FitOptions {
+                tolerance: 1e-5,
+                gtol: 1e-7,
+                // A non-linear rope law makes every rig simulation ~50x dearer; the
+                // analytic-response start is already close, so fewer refinement steps.
+                patience: if expensive { 3 } else { 25 },
+                diff_step: 1e-5,
+            };
+            let problem = Problem { prep, model };
+            match fit(&problem, &specs, &opts) {
+                Ok(r) => (model.with_values(&r.values, prep.runs.len()), Some(r)),
+                Err(e) if best.is_none() && starts.len() == 1 => return Err(e.into()),
+                Err(_) => continue,
+            }
+        };
+        let ssr = fit_res.as_ref().map_or(f64::INFINITY, |r| r.ssr);
+        if best.as_ref().is_none_or(|b| ssr < b.2) {
+            best = Some((fitted_model, fit_res, ssr));
+        }
+    }
+    let (fitted_model, fit_res, _) = best.ok_or(IdentError::NoStartFitted {
+        starts: starts.len(),
+    })?;
+    let sims = prep.simulate(&fitted_model)?;
+    let (nrmse, _) = prep.overall(&sims);
+    let ssr = prep.residuals_of(&sims).iter().map(|e| e * e).sum();
+    Ok(Fitted {
+        model: fitted_model,
+        fit: fit_res,
+        nrmse_before,
+        nrmse,
+        noise_floor,
+        ssr,
+        sims,
+    })
+}

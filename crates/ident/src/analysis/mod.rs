@@ -1,0 +1,30 @@
+//! Fit, compare and diagnose: a model simulated on the measured input of every run,
+//! its error, where it fails, and which registered effect is missing.
+//!
+//! Split by job:
+//!
+//! * `prepare.rs`: a dataset readied for the rest ([`Prepared`]: the compared channel,
+//!   analysed samples and noise floor of every run, [`RunData`]) and a model simulated
+//!   on its runs ([`Prepared::simulate`]);
+//! * `fit.rs`: a model's free parameters fitted to the data ([`fit_model`]: a starting
+//!   grid, for sweeps refined on the analytic frequency response, then least squares on
+//!   the simulation) or only screened at their starting values ([`screen_model`]);
+//! * `compare.rs`: a model measured against the data ([`compare`]: the error per run and
+//!   per test frequency, where it concentrates, residual checks, resonances);
+//! * `diagnose.rs`: the baseline and every applicable registered effect fitted, ranked,
+//!   and the missing effect named when the evidence is decisive ([`diagnose`]).
+
+mod compare;
+mod diagnose;
+mod fit;
+mod prepare;
+
+pub use compare::{
+    compare, Comparison, FrequencyError, ResidualChecks, RunError, RunResonance, Where,
+};
+pub use diagnose::{
+    diagnose, BaselineSummary, Candidate, Diagnosis, FLOOR_MARGIN, MIN_EXPLAINED, MIN_SCORE,
+    MIN_SCORE_GAP,
+};
+pub use fit::{fit_model, screen_model, Fitted};
+pub use prepare::{noise_sigma_second_difference, Prepared, RunData};

@@ -1,0 +1,237 @@
+//! A dataset prepared for simulation and comparison: the compared channel, analysed
+//! samples and noise floor of every run, and a model simulated on the runs.
+
+use longreach_drive::effects::DataKind;
+use rayon::prelude::*;
+
+use crate::dataset::{Dataset, DatasetKind};
+use crate::error::IdentError;
+use crate::model::{data_kind, Model};
+use crate::sensors::ENCODER_RESOLUTION_RAD;
+use crate::sim;
+
+/// One run prepared for comparison: the compared channel and the analysed samples.
+#[derive(Debug, Clone)]
+pub struct RunData {
+    /// Run name (file stem).
+    pub name: String,
+    /// Sample times [s].
+    pub time_s: Vec<f64>,
+    /// The compared measured channel (output angle [rad] or tension [N]), all samples.
+    pub measured: Vec<f64>,
+    /// Indices of the analysed samples (analysis windows of sweeps; all otherwise).
+    pub idx: Vec<usize>,
+    /// Frequency steps of a sweep: `(frequency_hz, analysis start, analysis end)`.
+    pub segments: Vec<(f64, usize, usize)>,
+    /// Sample interval [s].
+    pub dt_s: f64,
+    /// Mean tension of a sweep run [N].
+    pub mean_tension_n: Option<f64>,
+    /// Input amplitude of a sweep run [rad].
+    pub amplitude_rad: Option<f64>,
+    /// Noise standard deviation of the compared channel (the noise floor) [rad or N].
+    pub noise_sigma: f64,
+}
+
+impl RunData {
+    /// A run whose measured channel is a rope tension (relaxation and cyclic tests):
+    /// every sample analysed, noise from the second differences.
+    fn tension_run(name: &str, time_s: &[f64], tension_n: &[f64]) -> Self {
+        Self {
+            name: name.to_string(),
+            time_s: time_s.to_vec(),
+            measured: tension_n.to_vec(),
+            idx: (0..time_s.len()).collect(),
+            segments: Vec::new(),
+            dt_s: dt_of(time_s),
+            mean_tension_n: None,
+            amplitude_rad: None,
+            noise_sigma: noise_sigma_second_difference(tension_n),
+        }
+    }
+}
+
+/// A dataset prepared for simulation and comparison.
+#[derive(Debug, Clone)]
+pub struct Prepared<'a> {
+    /// The dataset.
+    pub ds: &'a Dataset,
+    /// Its kind.
+    pub kind: DataKind,
+    /// Its runs.
+    pub runs: Vec<RunData>,
+    /// Simulation sub-steps per sample of sweeps ([`sim::SWEEP_SUBSTEPS`] by default).
+    pub substeps: usize,
+}
+
+/// Noise standard deviation of a smooth signal from its second differences:
+/// `d_i = x_i - (x_{i-1} + x_{i+1})/2` is `N(0, 1.5 sigma^2)` for white Gaussian noise
+/// on a signal whose curvature over two samples is small, so
+/// `sigma = median |d_i| / (0.6745 sqrt 1.5)` (the median absolute deviation: robust
+/// to the few samples where the signal itself bends sharply, such as the step of a
+/// relaxation test at t = 0 or a decay faster than the sampling; a mean of squares
+/// would count those as noise and raise the floor).
+pub fn noise_sigma_second_difference(x: &[f64]) -> f64 {
+    if x.len() < 3 {
+        return 0.0;
+    }
+    let mut d: Vec<f64> = x
+        .windows(3)
+        .map(|w| (w[1] - 0.5 * (w[0] + w[2])).abs())
+        .collect();
+    let mid = d.len() / 2;
+    let (_, median, _) = d.select_nth_unstable_by(mid, f64::total_cmp);
+    // 0.67449 = Phi^-1(3/4): the median of |N(0, 1)|
+    *median / (0.674_489_750_196_081_7 * 1.5f64.sqrt())
+}
+
+impl<'a> Prepared<'a> {
+    /// Prepares `ds`: analysis windows and noise floors.
+    pub fn new(ds: &'a Dataset) -> Result<Self, IdentError> {
+        let runs = match &ds.kind {
+            DatasetKind::SineSweep(sw) => sw
+                .runs
+                .iter()
+                .map(|r| {
+                    let segs = r.segments()?;
+                    let idx = segs
+                        .iter()
+                        .flat_map(|g| g.analysis_start_index..g.analysis_end_index)
+                        .collect();
+                    Ok(RunData {
+                        name: r.name.clone(),
+                        time_s: r.time_s.clone(),
+                        measured: r.output_angle_rad.clone(),
+                        idx,
+                        segments: segs
+                            .iter()
+                            .map(|g| (g.frequency_hz, g.analysis_start_index, g.analysis_end_index))
+                            .collect(),
+                        dt_s: r.dt_s(),
+                        mean_tension_n: Some(r.mean_tension_n),
+                        amplitude_rad: Some(r.amplitude_rad),
+                        // Encoder quantisation: uniform error of one count.
+                        noise_sigma: ENCODER_RESOLUTION_RAD / 12f64.sqrt(),
+                    })
+                })
+                .collect::<Result<Vec<_>, IdentError>>()?,
+            DatasetKind::Relaxation(rx) => rx
+                .runs
+                .iter()
+                .map(|r| RunData::tension_run(&r.name, &r.time_s, &r.tension_n))
+                .collect(),
+            DatasetKind::Cyclic(cy) => cy
+                .runs
+                .iter()
+                .map(|r| RunData::tension_run(&r.name, &r.time_s, &r.tension_n))
+                .collect(),
+        };
+        Ok(Self {
+            ds,
+            kind: data_kind(ds),
+            runs,
+            substeps: sim::SWEEP_SUBSTEPS,
+        })
+    }
+
+    /// Simulates `model` on every run (in parallel, results in run order); returns the
+    /// compared channel at every sample.
+    pub fn simulate(&self, model: &Model) -> Result<Vec<Vec<f64>>, IdentError> {
+        (0..self.runs.len())
+            .into_par_iter()
+            .map(|r| self.simulate_run(model, r))
+            .collect()
+    }
+
+    /// Simulates `model` on run `r`.
+    pub fn simulate_run(&self, model: &Model, r: usize) -> Result<Vec<f64>, IdentError> {
+        let (law, damping) = model.law_for_run(r)?;
+        let out = match &self.ds.kind {
+            DatasetKind::SineSweep(sw) => {
+                let run = &sw.runs[r];
+                let mut spec = sim::drive_rig(&sw.rig, law, run.mean_tension_n);
+                if let Some(c) = damping {
+                    spec.output_damping_n_m_s = c;
+                }
+                let effects = model.plant_effects_for_run(r)?;
+                sim::simulate_sweep(
+                    spec,
+                    &effects,
+                    sim::drive_input(run),
+                    run.dt_s(),
+                    self.substeps,
+                )
+                .map(|s| s.output_rad)
+            }
+            DatasetKind::Relaxation(rx) => {
+                sim::simulate_relaxation(&law, rx.specimen.strain, &rx.runs[r].time_s)
+            }
+            DatasetKind::Cyclic(cy) => {
+                sim::simulate_cyclic(&law, &cy.runs[r].time_s, &cy.runs[r].strain)
+            }
+        };
+        out.map_err(|source| IdentError::Simulation {
+            run: self.runs[r].name.clone(),
+            source,
+        })
+    }
+
+    /// Residuals (model - measured) over the analysed samples of every run, concatenated.
+    pub fn residuals_of(&self, sims: &[Vec<f64>]) -> Vec<f64> {
+        let mut out = Vec::new();
+        for (run, y) in self.runs.iter().zip(sims) {
+            out.extend(run.idx.iter().map(|&i| y[i] - run.measured[i]));
+        }
+        out
+    }
+
+    /// Per-run `(SSE, SST, n)` over the analysed samples.
+    pub fn sums(&self, sims: &[Vec<f64>]) -> Vec<(f64, f64, usize)> {
+        self.runs
+            .iter()
+            .zip(sims)
+            .map(|(run, y)| {
+                let n = run.idx.len();
+                let mean = run.idx.iter().map(|&i| run.measured[i]).sum::<f64>() / n.max(1) as f64;
+                let sse = run
+                    .idx
+                    .iter()
+                    .map(|&i| (y[i] - run.measured[i]).powi(2))
+                    .sum();
+                let sst = run
+                    .idx
+                    .iter()
+                    .map(|&i| (run.measured[i] - mean).powi(2))
+                    .sum();
+                (sse, sst, n)
+            })
+            .collect()
+    }
+
+    /// Overall NRMSE `sqrt(sum SSE / sum SST)` and the noise floor on the same scale.
+    pub fn overall(&self, sims: &[Vec<f64>]) -> (f64, f64) {
+        let sums = self.sums(sims);
+        let sse: f64 = sums.iter().map(|s| s.0).sum();
+        let sst: f64 = sums.iter().map(|s| s.1).sum();
+        let floor: f64 = self
+            .runs
+            .iter()
+            .zip(&sums)
+            .map(|(r, s)| r.noise_sigma.powi(2) * s.2 as f64)
+            .sum();
+        ((sse / sst).sqrt(), (floor / sst).sqrt())
+    }
+
+    /// Total analysed samples.
+    pub fn n_samples(&self) -> usize {
+        self.runs.iter().map(|r| r.idx.len()).sum()
+    }
+}
+
+fn dt_of(t: &[f64]) -> f64 {
+    if t.len() < 2 {
+        1.0
+    } else {
+        (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64
+    }
+}

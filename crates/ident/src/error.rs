@@ -1,0 +1,85 @@
+//! [`IdentError`]: what can go wrong preparing, simulating, fitting, comparing and
+//! diagnosing a dataset, or making a synthetic one.
+//!
+//! Each variant carries the failure as a typed value (the dataset's, the model's, the
+//! drive's, the fitter's, ...); the message is the one the CLI prints, the cause's own
+//! message with, where it helps, the run it happened in.
+
+use longreach_drive::DriveError;
+
+use crate::dataset::DatasetError;
+use crate::fitting::FitError;
+use crate::metrics::MetricsError;
+use crate::model::ModelError;
+use crate::sensors::SensorError;
+
+/// Everything the identification loop ([`crate::analysis`], [`crate::synth`]) can fail
+/// on.
+#[derive(Debug, thiserror::Error)]
+pub enum IdentError {
+    /// The dataset cannot be used as it is (e.g. a frequency step too short to analyse).
+    #[error(transparent)]
+    Dataset(#[from] DatasetError),
+    /// The model gives no valid rope law or rig for a run (an unknown base parameter,
+    /// an effect refusing its values, an invalid law).
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// Simulating the model on one run of the dataset failed.
+    #[error("run {run}: {source}")]
+    Simulation {
+        /// The run's name (file stem).
+        run: String,
+        /// The simulator's complaint.
+        #[source]
+        source: DriveError,
+    },
+    /// The drive crate refused a synthetic test (its input signal or its simulation).
+    #[error(transparent)]
+    Drive(DriveError),
+    /// A sensor model refused its settings (e.g. a negative noise level).
+    #[error(transparent)]
+    Sensor(#[from] SensorError),
+    /// An error metric could not be computed.
+    #[error(transparent)]
+    Metrics(#[from] MetricsError),
+    /// The least-squares fit failed.
+    #[error(transparent)]
+    Fit(#[from] FitError),
+    /// No start of the starting grid could be simulated (screening a model).
+    #[error("every start failed to simulate")]
+    NoStartSimulated {
+        /// Starts tried.
+        starts: usize,
+    },
+    /// The fit failed from every start of the starting grid.
+    #[error("every fit from the starting grid failed")]
+    NoStartFitted {
+        /// Starts tried.
+        starts: usize,
+    },
+    /// A sweep-only computation (the analytic frequency response) was asked of another
+    /// kind of dataset.
+    #[error("not a sweep")]
+    NotASweep {
+        /// The dataset's kind, as spelled in `dataset.toml`.
+        kind: &'static str,
+    },
+    /// A synthetic cyclic test's strain rate or sample interval is not positive.
+    #[error("cyclic test: strain rate {strain_rate_per_s} 1/s and dt {dt_s} s must be > 0")]
+    CyclicRates {
+        /// Strain rate of the ramps (1/s).
+        strain_rate_per_s: f64,
+        /// Sample interval (s).
+        dt_s: f64,
+    },
+    /// A synthetic cyclic run's strains are not `0 <= lower < upper`.
+    #[error("cyclic run {run}: need 0 <= lower strain {lower} < upper strain {upper}")]
+    CyclicStrains {
+        /// The run, counted from 1.
+        run: usize,
+        /// Lower strain.
+        lower: f64,
+        /// Upper strain.
+        upper: f64,
+    },
+}
