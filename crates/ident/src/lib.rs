@@ -22,5 +22,6 @@ pub use metrics::MetricsError;
 pub use sensors::{Encoder, GaussianNoise, SensorError, ENCODER_RESOLUTION_RAD};
 pub mod analysis;
 pub mod model;
+pub mod plant;
 pub mod sim;
 pub mod synth;

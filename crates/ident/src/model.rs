@@ -33,14 +33,134 @@ pub struct ParamDef {
     pub fit: bool,
     /// One value per run instead of one for the whole dataset.
     pub per_run: bool,
+    /// What the value sets (typed when the model is read: a fit changes numbers, never
+    /// rebuilds anything through a parameter's name).
+    #[serde(skip)]
+    pub role: Role,
+}
+
+/// What a model parameter sets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Role {
+    /// A base parameter of the plant.
+    Base(BaseParam),
+    /// A parameter of the model's effect that owns it (by position).
+    #[default]
+    Effect,
+}
+
+/// The base parameters a model may set, by what they set.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum BaseParam {
+    /// `k1_scale`: multiplies the catalog k1.
+    K1Scale,
+    /// `k1` [N].
+    K1,
+    /// `c1` [N*s] (internal damping, a dashpot parallel to k1).
+    C1,
+    /// `c2` [N*s] (creep dashpot).
+    C2,
+    /// `k3` [N] (the first Kelvin element's spring).
+    K3,
+    /// `c3` [N*s] (its dashpot).
+    C3,
+    /// `kp` [N] (Flory's ratchet spring).
+    Kp,
+    /// `output_damping_n_m_s` [N*m*s]: the rig's C.
+    OutputDamping,
+}
+
+impl BaseParam {
+    /// Every base parameter.
+    pub const ALL: [BaseParam; 8] = [
+        Self::K1Scale,
+        Self::K1,
+        Self::C1,
+        Self::C2,
+        Self::K3,
+        Self::C3,
+        Self::Kp,
+        Self::OutputDamping,
+    ];
+
+    /// Name, as in model files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::K1Scale => "k1_scale",
+            Self::K1 => "k1",
+            Self::C1 => "c1",
+            Self::C2 => "c2",
+            Self::K3 => "k3",
+            Self::C3 => "c3",
+            Self::Kp => "kp",
+            Self::OutputDamping => "output_damping_n_m_s",
+        }
+    }
+
+    /// Unit.
+    pub fn unit(self) -> &'static str {
+        match self {
+            Self::K1Scale => "1",
+            Self::K1 | Self::K3 | Self::Kp => "N",
+            Self::C1 | Self::C2 | Self::C3 => "N*s",
+            Self::OutputDamping => "N*m*s",
+        }
+    }
+
+    /// The base parameter called `name` in a model file.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|p| p.name() == name)
+    }
+
+    /// Sets value `v` in the plant parameters `p`.
+    pub fn apply(self, v: f64, p: &mut PlantParams) -> Result<(), ModelError> {
+        let law = &mut p.law;
+        match self {
+            Self::K1Scale => law.k1_n *= v,
+            Self::K1 => law.k1_n = v,
+            Self::C1 => law.c1_n_s = v,
+            Self::C2 => law.c2_n_s = Some(v),
+            Self::K3 | Self::C3 => {
+                let el = law
+                    .kelvin
+                    .first_mut()
+                    .ok_or_else(|| ModelError::NeedsKelvinElement {
+                        param: self.name().to_string(),
+                    })?;
+                if self == Self::K3 {
+                    el.k_n = v;
+                } else {
+                    el.c_n_s = v;
+                }
+            }
+            Self::Kp => law.kp_n = Some(v),
+            Self::OutputDamping => p.output_damping_n_m_s = Some(v),
+        }
+        Ok(())
+    }
+}
+
+/// The numbers a model gives a plant for one run ([`Model::plant_params`]): the rope
+/// law with the base parameters and every rope-law effect applied, the rig's output
+/// damping when the model sets it, and the effects at the plant's other sites (relay
+/// pulleys, joints) with their values.
+#[derive(Debug, Clone)]
+pub struct PlantParams {
+    /// The rope law.
+    pub law: RopeLaw,
+    /// The rig's C when the model sets it, N*m*s.
+    pub output_damping_n_m_s: Option<f64>,
+    /// Effects at sites other than the rope law, for the plant to apply when it is
+    /// built.
+    pub effects: Vec<Applied>,
 }
 
 impl ParamDef {
-    /// A fitted global parameter on a log scale.
-    pub fn fitted(name: &str, unit: &str, value: f64, lower: f64, upper: f64) -> Self {
+    /// A fitted global base parameter on a log scale.
+    pub fn base(param: BaseParam, value: f64, lower: f64, upper: f64) -> Self {
         Self {
-            name: name.into(),
-            unit: unit.into(),
+            name: param.name().into(),
+            unit: param.unit().into(),
             value,
             run_values: None,
             lower,
@@ -48,6 +168,7 @@ impl ParamDef {
             log_scale: true,
             fit: true,
             per_run: false,
+            role: Role::Base(param),
         }
     }
 
@@ -85,18 +206,6 @@ pub struct Model {
     pub effects: Vec<EffectUse>,
 }
 
-/// Names a base parameter may have, with units.
-pub const BASE_PARAMS: &[(&str, &str)] = &[
-    ("k1_scale", "1"),
-    ("k1", "N"),
-    ("c1", "N*s"),
-    ("c2", "N*s"),
-    ("k3", "N"),
-    ("c3", "N*s"),
-    ("kp", "N"),
-    ("output_damping_n_m_s", "N*m*s"),
-];
-
 /// The kind of a dataset as the effect registry sees it.
 pub fn data_kind(ds: &Dataset) -> DataKind {
     match ds.kind {
@@ -130,12 +239,6 @@ pub enum ModelError {
     /// for, or the law with the model's values is invalid.
     #[error(transparent)]
     Rope(#[from] RopeError),
-    /// A base parameter whose name is not one of [`BASE_PARAMS`].
-    #[error("unknown base parameter `{name}`")]
-    UnknownBaseParam {
-        /// The name found.
-        name: String,
-    },
     /// `k3` or `c3` set on a law without a Kelvin-Voigt element (an elastic law).
     #[error("`{param}` needs a four-element or Flory law")]
     NeedsKelvinElement {
@@ -163,7 +266,7 @@ impl Model {
         let law_kind = LawKind::default_for(&params);
         let law = RopeLaw::from_params(&params, law_kind)?;
         let base = match ds.kind {
-            DatasetKind::SineSweep(_) => vec![ParamDef::fitted("k1_scale", "1", 1.0, 0.2, 5.0)],
+            DatasetKind::SineSweep(_) => vec![ParamDef::base(BaseParam::K1Scale, 1.0, 0.2, 5.0)],
             _ => law_constants(&law),
         };
         Ok(Model {
@@ -270,67 +373,46 @@ impl Model {
         m
     }
 
-    /// Rope law (and rig damping override) of run `run`.
-    pub fn law_for_run(&self, run: usize) -> Result<(RopeLaw, Option<f64>), ModelError> {
-        let mut law = self.law.clone();
-        let mut damping = None;
-        for p in &self.base {
-            let v = p.value_for(run);
-            match p.name.as_str() {
-                "k1_scale" => law.k1_n *= v,
-                "k1" => law.k1_n = v,
-                "c1" => law.c1_n_s = v,
-                "c2" => law.c2_n_s = Some(v),
-                "k3" | "c3" => {
-                    let el =
-                        law.kelvin
-                            .first_mut()
-                            .ok_or_else(|| ModelError::NeedsKelvinElement {
-                                param: p.name.clone(),
-                            })?;
-                    if p.name == "k3" {
-                        el.k_n = v;
-                    } else {
-                        el.c_n_s = v;
-                    }
-                }
-                "kp" => law.kp_n = Some(v),
-                "output_damping_n_m_s" => damping = Some(v),
-                other => {
-                    return Err(ModelError::UnknownBaseParam {
-                        name: other.to_string(),
-                    })
-                }
+    /// The numbers the model gives a plant for run `run` ([`PlantParams`]): base
+    /// parameters and rope-law effects applied to the law, the other effects with their
+    /// values.
+    pub fn plant_params(&self, run: usize) -> Result<PlantParams, ModelError> {
+        let mut p = PlantParams {
+            law: self.law.clone(),
+            output_damping_n_m_s: None,
+            effects: Vec::new(),
+        };
+        for b in &self.base {
+            if let Role::Base(param) = b.role {
+                param.apply(b.value_for(run), &mut p)?;
             }
         }
         for u in &self.effects {
-            let vals: Vec<f64> = u.params.iter().map(|p| p.value_for(run)).collect();
-            u.effect
-                .on_law(&vals, &mut law)
-                .map_err(|source| ModelError::Effect {
-                    effect: u.effect.name(),
-                    source,
-                })?;
+            let vals: Vec<f64> = u.params.iter().map(|q| q.value_for(run)).collect();
+            let applied = Applied::new(u.effect, vals).map_err(|source| ModelError::Effect {
+                effect: u.effect.name(),
+                source,
+            })?;
+            if u.effect.site() == Site::RopeLaw {
+                applied
+                    .apply_to_law(&mut p.law)
+                    .map_err(|source| ModelError::Effect {
+                        effect: u.effect.name(),
+                        source,
+                    })?;
+            } else {
+                p.effects.push(applied);
+            }
         }
-        law.validate()?;
-        Ok((law, damping))
+        p.law.validate()?;
+        Ok(p)
     }
 
-    /// The model's effects at sites other than the rope law (relay pulleys, joints),
-    /// with their values for run `run`, for the plant to apply when it is built (the
-    /// rope-law effects are in [`Self::law_for_run`]).
-    pub fn plant_effects_for_run(&self, run: usize) -> Result<Vec<Applied>, ModelError> {
-        self.effects
-            .iter()
-            .filter(|u| u.effect.site() != Site::RopeLaw)
-            .map(|u| {
-                let vals: Vec<f64> = u.params.iter().map(|p| p.value_for(run)).collect();
-                Applied::new(u.effect, vals).map_err(|source| ModelError::Effect {
-                    effect: u.effect.name(),
-                    source,
-                })
-            })
-            .collect()
+    /// Rope law (with the rope-law effects) and rig damping override of run `run`
+    /// ([`Self::plant_params`]).
+    pub fn law_for_run(&self, run: usize) -> Result<(RopeLaw, Option<f64>), ModelError> {
+        let p = self.plant_params(run)?;
+        Ok((p.law, p.output_damping_n_m_s))
     }
 
     /// The model plus `effect` with its default parameters, all fitted.
@@ -351,6 +433,7 @@ impl Model {
                     log_scale: p.log_scale,
                     fit: p.fitted,
                     per_run: false,
+                    role: Role::Effect,
                 })
                 .collect(),
         });
@@ -498,36 +581,38 @@ impl Model {
                 )
             })?;
             for (name, val) in t {
-                let Some(&(_, unit)) = BASE_PARAMS.iter().find(|(n, _)| n == name) else {
+                let Some(param) = BaseParam::from_name(name) else {
                     return Err(err(
                         &format!("params.{name}"),
                         format!("unknown base parameter `{name}`"),
                         &format!(
                             "base parameters are {}",
-                            BASE_PARAMS
+                            BaseParam::ALL
                                 .iter()
-                                .map(|p| p.0)
+                                .map(|p| p.name())
                                 .collect::<Vec<_>>()
                                 .join(", ")
                         ),
                     ));
                 };
-                let (lo, hi) = if name == "k1_scale" {
+                let (lo, hi) = if param == BaseParam::K1Scale {
                     (0.2, 5.0)
                 } else {
                     (0.0, f64::INFINITY)
                 };
-                base.push(parse_param(
+                let mut p = parse_param(
                     text,
                     file,
                     &format!("params.{name}"),
                     name,
-                    unit,
+                    param.unit(),
                     val,
                     lo,
                     hi,
                     true,
-                )?);
+                )?;
+                p.role = Role::Base(param);
+                base.push(p);
             }
         } else {
             base = Model::baseline(ds)?.base;
@@ -608,8 +693,9 @@ impl Model {
                             lower: spec.lower,
                             upper: spec.upper,
                             log_scale: spec.log_scale,
-                            fit: true,
+                            fit: spec.fitted,
                             per_run: false,
+                            role: Role::Effect,
                         },
                     };
                     ps.push(p);
@@ -632,31 +718,14 @@ impl Model {
 
 /// The four constants of the law (or k1 alone), fitted on a log scale within a decade.
 fn law_constants(law: &RopeLaw) -> Vec<ParamDef> {
-    let mut out = vec![ParamDef::fitted(
-        "k1",
-        "N",
-        law.k1_n,
-        law.k1_n / 10.0,
-        law.k1_n * 10.0,
-    )];
+    let decade = |p: BaseParam, v: f64| ParamDef::base(p, v, v / 10.0, v * 10.0);
+    let mut out = vec![decade(BaseParam::K1, law.k1_n)];
     if let Some(c2) = law.c2_n_s {
-        out.push(ParamDef::fitted("c2", "N*s", c2, c2 / 10.0, c2 * 10.0));
+        out.push(decade(BaseParam::C2, c2));
     }
     if let Some(k) = law.kelvin.first() {
-        out.push(ParamDef::fitted(
-            "k3",
-            "N",
-            k.k_n,
-            k.k_n / 10.0,
-            k.k_n * 10.0,
-        ));
-        out.push(ParamDef::fitted(
-            "c3",
-            "N*s",
-            k.c_n_s,
-            k.c_n_s / 10.0,
-            k.c_n_s * 10.0,
-        ));
+        out.push(decade(BaseParam::K3, k.k_n));
+        out.push(decade(BaseParam::C3, k.c_n_s));
     }
     out
 }
@@ -692,6 +761,7 @@ fn parse_param(
         log_scale,
         fit: false,
         per_run: false,
+        role: Role::Effect,
     };
     match val {
         toml::Value::Table(t) => {

@@ -100,13 +100,12 @@ pub fn sweep(model: &Model, opt: &SweepOptions) -> Result<SweepDataset, IdentErr
                 steps[k].frequency_hz
             })
             .collect();
-        let (law, damping) = model.law_for_run(r)?;
-        let mut spec = sim::drive_rig(&opt.rig, law, tension);
-        if let Some(c) = damping {
+        let params = model.plant_params(r)?;
+        let mut spec = sim::drive_rig(&opt.rig, params.law, tension);
+        if let Some(c) = params.output_damping_n_m_s {
             spec.output_damping_n_m_s = c;
         }
-        let effects = model.plant_effects_for_run(r)?;
-        let s = sim::simulate_sweep(spec, &effects, &command, opt.dt_s, opt.substeps)
+        let s = sim::simulate_sweep(spec, &params.effects, &command, opt.dt_s, opt.substeps)
             .map_err(IdentError::Drive)?;
         let noise = |ch: u64, x: &[f64]| -> Result<Vec<f64>, IdentError> {
             let mut g = GaussianNoise::new(

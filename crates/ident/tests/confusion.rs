@@ -35,8 +35,11 @@ fn base_model(rope: &str, kind: DataKind) -> Model {
     };
     let mut m = Model::baseline(&ds).unwrap();
     if kind == DataKind::SineSweep {
-        m.base = vec![longreach_ident::model::ParamDef::fitted(
-            "k1_scale", "1", 1.0, 0.2, 5.0,
+        m.base = vec![longreach_ident::model::ParamDef::base(
+            longreach_ident::model::BaseParam::K1Scale,
+            1.0,
+            0.2,
+            5.0,
         )];
     }
     m

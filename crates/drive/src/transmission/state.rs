@@ -95,6 +95,14 @@ pub(crate) struct Solver {
     pub relay: Vec<Option<RelayScratch>>,
     /// Pivots of the joint LU (plants with relay friction).
     pub perm: Vec<usize>,
+    /// The trial state before the last full Newton update and that update (joints,
+    /// motors, tensioners), for the line search of the globalised iterations.
+    pub q1_back: Vec<f64>,
+    pub th1_back: Vec<f64>,
+    pub x1_back: Vec<f64>,
+    pub dq: Vec<f64>,
+    pub dth: Vec<f64>,
+    pub dx: Vec<f64>,
     /// The Newton matrix of the last step (factors in `kq`, `perm` and the relay
     /// scratch) may start the next step's chord iterations.
     pub kept: bool,

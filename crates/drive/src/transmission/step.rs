@@ -76,6 +76,17 @@ const RELAX_ITERATIONS: u32 = 4;
 /// tolerances, at least one).
 const RELAX_RATIO: f64 = 10.0;
 
+/// Newton iterations after which a step that has not converged is globalised: full
+/// Newton without the relay safeguards, each update cut back (halved) until the sum of
+/// the squared residuals falls (Armijo). The safeguards settle the stick-slip of the
+/// shipped arm within a few iterations; a step whose spans keep going slack and taut
+/// between iterates (a rope pair at low preload near resonance, relays of tiny inertia)
+/// can cycle under them, which the line search ends.
+const GLOBALISE_AFTER: u32 = 24;
+
+/// Smallest step fraction of the line search: below it the update is taken as it is.
+const MIN_STEP_FRACTION: f64 = 1.0 / 1024.0;
+
 /// Steps a kept Newton matrix may start: then a fresh one (a matrix kept over many
 /// steps lets errors far below the tolerance accumulate: 2e-11 rad over 0.6 s in the
 /// zero-friction comparison of the arm's relay-friction tests without this limit, 4e-15
@@ -285,6 +296,12 @@ impl Drivetrain {
                 })
                 .collect(),
             perm: vec![0; n],
+            q1_back: vec![0.0; n],
+            th1_back: vec![0.0; np],
+            x1_back: vec![0.0; np],
+            dq: vec![0.0; n],
+            dth: vec![0.0; np],
+            dx: vec![0.0; np],
             kept: false,
             age: 0,
             chord_rate: f64::INFINITY,
@@ -343,8 +360,17 @@ impl Drivetrain {
         let mut refresh = !(chord_allowed && st.solver.kept && st.solver.age < MAX_KEPT_STEPS);
         let mut mbase_done = false;
         let mut last_update = f64::INFINITY;
+        // The globalised iterations' line search: the merit before the last full update
+        // and the fraction of it taken.
+        let mut globalised = false;
+        let mut line: Option<(f64, f64)> = None;
         for _ in 0..max_iterations {
             iterations += 1;
+            if iterations > GLOBALISE_AFTER && !globalised {
+                globalised = true;
+                chord_allowed = false;
+                refresh = true;
+            }
             let assembled = self.assemble(
                 joints,
                 st,
@@ -354,6 +380,19 @@ impl Drivetrain {
                     mbase_done: &mut mbase_done,
                 },
             );
+            if globalised && matches!(assembled, Assembled::Done) {
+                let merit = self.merit(st);
+                if let Some((merit0, fraction)) = line {
+                    if merit > (1.0 - 1e-4 * fraction) * merit0 && fraction > MIN_STEP_FRACTION {
+                        // Not enough descent: back to the point before the update, half
+                        // as far along it.
+                        line = Some((merit0, 0.5 * fraction));
+                        self.retract(st, 0.5 * fraction);
+                        continue;
+                    }
+                }
+                line = Some((merit, 1.0));
+            }
             let (retry, singular) = match assembled {
                 Assembled::Done => (false, false),
                 Assembled::Retry => (true, false),
@@ -390,6 +429,10 @@ impl Drivetrain {
             let mut small = true;
             // Largest joint update relative to the tolerance (chord control).
             let mut update = 0.0f64;
+            if globalised {
+                sv.q1_back.copy_from_slice(&sv.q1);
+                sv.dq.copy_from_slice(&sv.rhs);
+            }
             for j in 0..n {
                 let d = sv.rhs[j];
                 sv.q1[j] += d;
@@ -399,7 +442,11 @@ impl Drivetrain {
                 update = update.max(d.abs() / (tol * (1.0 + sv.q1[j].abs())));
             }
             let joint_update = update;
-            let locals = self.update_locals(st, iterations, joint_update);
+            let locals = if globalised {
+                self.update_locals_plain(st)
+            } else {
+                self.update_locals(st, iterations, joint_update)
+            };
             small &= locals.small;
             update = update.max(locals.update);
             let sv = &mut st.solver;
@@ -805,6 +852,98 @@ impl Drivetrain {
                 if d1.abs() > 1e-15 * (1.0 + pair.spec.length_m) {
                     out.small = false;
                 }
+            }
+        }
+        out
+    }
+
+    /// The sum of the squared residuals at the last assembly (joints, every pair's local
+    /// equations): the merit of the globalised iterations. Mixed units (N*m, N), as
+    /// the equations are written; the line search only compares it with itself.
+    fn merit<S>(&self, st: &PlantState<S>) -> f64 {
+        let sv = &st.solver;
+        let mut m: f64 = sv.rhs.iter().map(|r| r * r).sum();
+        for (p, pair) in self.pairs.iter().enumerate() {
+            match (&pair.relays, &sv.relay[p]) {
+                (Some(_), Some(rs)) => m += rs.merit,
+                _ => {
+                    let [.., r0, r1] = sv.local[p];
+                    m += r0 * r0 + r1 * r1;
+                }
+            }
+        }
+        m
+    }
+
+    /// Puts the trial state back at the point before the last full update and moves it
+    /// `fraction` of the way along that update.
+    fn retract<S>(&self, st: &mut PlantState<S>, fraction: f64) {
+        let sv = &mut st.solver;
+        for j in 0..self.ndofs {
+            sv.q1[j] = sv.q1_back[j] + fraction * sv.dq[j];
+        }
+        for p in 0..self.pairs.len() {
+            sv.th1[p] = sv.th1_back[p] + fraction * sv.dth[p];
+            sv.x1[p] = sv.x1_back[p] + fraction * sv.dx[p];
+            if let Some(rs) = sv.relay[p].as_mut() {
+                for (k, psi) in rs.psi1.iter_mut().enumerate() {
+                    *psi = rs.psi_back[k] + fraction * rs.dpsi[k];
+                }
+            }
+        }
+    }
+
+    /// Stage 4 of a globalised iteration: every pair's full local update, without the
+    /// relay safeguards, the point before it and the update kept for the line search.
+    fn update_locals_plain<S>(&self, st: &mut PlantState<S>) -> Locals {
+        let tol = self.newton_tolerance;
+        let sv = &mut st.solver;
+        sv.th1_back.copy_from_slice(&sv.th1);
+        sv.x1_back.copy_from_slice(&sv.x1);
+        let mut out = Locals {
+            small: true,
+            update: 0.0,
+            guarded: false,
+            relaxed: false,
+        };
+        for (p, pair) in self.pairs.iter().enumerate() {
+            let (d0, d1) = match (&pair.relays, sv.relay[p].as_mut()) {
+                (Some(c), Some(rs)) => {
+                    relay::local_update(c, rs, &sv.rhs);
+                    out.update = out.update.max(relay::largest_update(c, rs, tol));
+                    let m = c.relays();
+                    rs.psi_back.copy_from_slice(&rs.psi1);
+                    for side in 0..2 {
+                        for rl in 0..m {
+                            let k = side * m + rl;
+                            let d = rs.dz[c.iz_psi(side, rl)];
+                            rs.dpsi[k] = d;
+                            rs.psi1[k] += d;
+                            if d.abs() > tol * (1.0 + rs.psi1[k].abs()) {
+                                out.small = false;
+                            }
+                        }
+                    }
+                    (rs.dz[c.iz_theta()], rs.dz[c.iz_x()])
+                }
+                _ => ideal::local_update(pair, &sv.local[p], &sv.rhs),
+            };
+            let (d0, d1) = (
+                if pair.spec.motor.is_servo() { d0 } else { 0.0 },
+                if pair.spec.tensioner == Tensioner::ConstantForce {
+                    d1
+                } else {
+                    0.0
+                },
+            );
+            sv.dth[p] = d0;
+            sv.dx[p] = d1;
+            sv.th1[p] += d0;
+            sv.x1[p] += d1;
+            if d0.abs() > tol * (1.0 + sv.th1[p].abs())
+                || d1.abs() > 1e-15 * (1.0 + pair.spec.length_m)
+            {
+                out.small = false;
             }
         }
         out

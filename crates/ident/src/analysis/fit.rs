@@ -76,25 +76,20 @@ struct FrfProblem<'p, 'a> {
 
 impl FrfProblem<'_, '_> {
     fn eval(&self, x: &[f64], out: &mut Vec<f64>) -> Result<(), IdentError> {
-        let DatasetKind::SineSweep(sw) = &self.prep.ds.kind else {
-            return Err(IdentError::NotASweep {
-                kind: self.prep.ds.kind.name(),
-            });
-        };
         let m = self.model.with_values(x, self.prep.runs.len());
-        let specs: Vec<longreach_drive::RigSpec> = (0..self.prep.runs.len())
-            .map(|r| {
-                let (law, damping) = m.law_for_run(r)?;
-                let mut spec = sim::drive_rig(&sw.rig, law, sw.runs[r].mean_tension_n);
-                if let Some(c) = damping {
-                    spec.output_damping_n_m_s = c;
-                }
-                Ok(spec)
-            })
-            .collect::<Result<_, IdentError>>()?;
+        let params = (0..self.prep.runs.len())
+            .map(|r| m.plant_params(r))
+            .collect::<Result<Vec<_>, _>>()?;
         out.clear();
         for &(r, f, h) in &self.points {
-            let d = (longreach_drive::rig_transfer(&specs[r], f) / h).ln();
+            let model_h = self
+                .prep
+                .plant
+                .small_signal_response(&params[r], r, f)
+                .ok_or(IdentError::NotASweep {
+                    kind: self.prep.ds.kind.name(),
+                })?;
+            let d = (model_h / h).ln();
             out.push(d.re);
             out.push(d.im);
         }
@@ -132,7 +127,10 @@ fn starting_values(
     let gridded: Vec<usize> = (0..specs.len())
         .filter(|&i| {
             matches!(slots[i].owner, crate::model::Owner::Effect(_))
-                || (prep.kind == DataKind::SineSweep && specs[i].name == "k1_scale")
+                || (prep.kind == DataKind::SineSweep
+                    && slots[i].owner == crate::model::Owner::Base
+                    && model.base[slots[i].index].role
+                        == crate::model::Role::Base(crate::model::BaseParam::K1Scale))
         })
         .take(3)
         .collect();

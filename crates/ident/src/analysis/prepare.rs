@@ -7,6 +7,7 @@ use rayon::prelude::*;
 use crate::dataset::{Dataset, DatasetKind};
 use crate::error::IdentError;
 use crate::model::{data_kind, Model};
+use crate::plant::{plant_for, Channels, Plant};
 use crate::sensors::ENCODER_RESOLUTION_RAD;
 use crate::sim;
 
@@ -52,7 +53,7 @@ impl RunData {
 }
 
 /// A dataset prepared for simulation and comparison.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct Prepared<'a> {
     /// The dataset.
     pub ds: &'a Dataset,
@@ -60,8 +61,9 @@ pub struct Prepared<'a> {
     pub kind: DataKind,
     /// Its runs.
     pub runs: Vec<RunData>,
-    /// Simulation sub-steps per sample of sweeps ([`sim::SWEEP_SUBSTEPS`] by default).
-    pub substeps: usize,
+    /// The plant that reproduces it (sweeps simulated at [`sim::SWEEP_SUBSTEPS`]
+    /// sub-steps per sample).
+    pub plant: Box<dyn Plant + 'a>,
 }
 
 /// Noise standard deviation of a smooth signal from its second differences:
@@ -130,7 +132,7 @@ impl<'a> Prepared<'a> {
             ds,
             kind: data_kind(ds),
             runs,
-            substeps: sim::SWEEP_SUBSTEPS,
+            plant: plant_for(ds, sim::SWEEP_SUBSTEPS),
         })
     }
 
@@ -143,37 +145,15 @@ impl<'a> Prepared<'a> {
             .collect()
     }
 
-    /// Simulates `model` on run `r`.
+    /// Simulates `model` on run `r`: the compared channel.
     pub fn simulate_run(&self, model: &Model, r: usize) -> Result<Vec<f64>, IdentError> {
-        let (law, damping) = model.law_for_run(r)?;
-        let out = match &self.ds.kind {
-            DatasetKind::SineSweep(sw) => {
-                let run = &sw.runs[r];
-                let mut spec = sim::drive_rig(&sw.rig, law, run.mean_tension_n);
-                if let Some(c) = damping {
-                    spec.output_damping_n_m_s = c;
-                }
-                let effects = model.plant_effects_for_run(r)?;
-                sim::simulate_sweep(
-                    spec,
-                    &effects,
-                    sim::drive_input(run),
-                    run.dt_s(),
-                    self.substeps,
-                )
-                .map(|s| s.output_rad)
-            }
-            DatasetKind::Relaxation(rx) => {
-                sim::simulate_relaxation(&law, rx.specimen.strain, &rx.runs[r].time_s)
-            }
-            DatasetKind::Cyclic(cy) => {
-                sim::simulate_cyclic(&law, &cy.runs[r].time_s, &cy.runs[r].strain)
-            }
-        };
-        out.map_err(|source| IdentError::Simulation {
-            run: self.runs[r].name.clone(),
-            source,
-        })
+        Ok(self.simulate_channels(model, r)?.into_primary())
+    }
+
+    /// Simulates `model` on run `r`: every channel the run measured.
+    pub fn simulate_channels(&self, model: &Model, r: usize) -> Result<Channels, IdentError> {
+        let params = model.plant_params(r)?;
+        self.plant.simulate(&params, r)
     }
 
     /// Residuals (model - measured) over the analysed samples of every run, concatenated.

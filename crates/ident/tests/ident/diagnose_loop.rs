@@ -8,7 +8,7 @@ use std::path::PathBuf;
 
 use longreach_drive::effects::{self, DataKind};
 use longreach_ident::analysis::{compare, diagnose, fit_model, Prepared};
-use longreach_ident::model::{Model, ModelError, ParamDef};
+use longreach_ident::model::{BaseParam, Model, ModelError, ParamDef};
 use longreach_ident::synth::{self, CyclicOptions, RelaxationOptions};
 use longreach_ident::{Dataset, IdentError};
 use longreach_rope::Catalog;
@@ -130,31 +130,33 @@ fn relax_base() -> Model {
     Model::baseline(&ds).unwrap()
 }
 
-/// The loop's errors are typed values (a model's unknown base parameter, an effect
+/// The loop's errors are typed values (a base parameter the law cannot take, an effect
 /// refusing its values, a synthetic test's options) whose messages are the ones the CLI
-/// prints.
+/// prints. A base parameter sets what its typed role says (read once from the model
+/// file), never what its label spells.
 #[test]
 fn errors_are_typed_and_keep_their_messages() {
     let mut m = relax_base();
-    m.base.push(ParamDef {
-        name: "bogus".into(),
-        ..m.base[0].clone()
-    });
+    m.law = longreach_rope::RopeLaw::elastic(m.law.k1_n);
+    m.base = vec![ParamDef {
+        name: "a label, not a key".into(),
+        ..ParamDef::base(BaseParam::K3, 1e5, 1e4, 1e6)
+    }];
     let e = m.law_for_run(0).unwrap_err();
     assert!(
-        matches!(&e, ModelError::UnknownBaseParam { name } if name == "bogus"),
+        matches!(&e, ModelError::NeedsKelvinElement { param } if param == "k3"),
         "{e:?}"
     );
-    assert_eq!(e.to_string(), "unknown base parameter `bogus`");
+    assert_eq!(e.to_string(), "`k3` needs a four-element or Flory law");
     // the analysis hands the model's error on as it is
     let ds = Dataset::load(example("example_relax_control")).unwrap();
     let prep = Prepared::new(&ds).unwrap();
     let e = prep.simulate(&m).unwrap_err();
     assert!(
-        matches!(e, IdentError::Model(ModelError::UnknownBaseParam { .. })),
+        matches!(e, IdentError::Model(ModelError::NeedsKelvinElement { .. })),
         "{e:?}"
     );
-    assert_eq!(e.to_string(), "unknown base parameter `bogus`");
+    assert_eq!(e.to_string(), "`k3` needs a four-element or Flory law");
 
     let mut m = relax_base().with_effect(effects::find("internal_damping").unwrap());
     m.effects[0].params[0].value = -1.0;

@@ -4,7 +4,7 @@
 
 use longreach_drive::effects;
 use longreach_ident::analysis::{diagnose, Prepared};
-use longreach_ident::model::{Model, ParamDef};
+use longreach_ident::model::{BaseParam, Model, ParamDef};
 use longreach_ident::synth::{self, SweepOptions};
 use longreach_ident::Dataset;
 
@@ -36,7 +36,7 @@ fn diagnose_names_relay_friction_and_recovers_the_coefficient() {
     )
     .unwrap();
     let mut base = Model::baseline(&ds0).unwrap();
-    base.base = vec![ParamDef::fitted("k1_scale", "1", 1.0, 0.2, 5.0)];
+    base.base = vec![ParamDef::base(BaseParam::K1Scale, 1.0, 0.2, 5.0)];
     let mut truth = base.with_effect(e);
     truth.effects[0].params[0].value = COEFFICIENT;
     truth.effects[0].params[1].value = INERTIA_KG_M2;

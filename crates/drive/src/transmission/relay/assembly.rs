@@ -49,6 +49,13 @@ pub(crate) struct RelayScratch {
     pub(crate) damping: Vec<f64>,
     /// Relays whose last update jumped across the stick band.
     pub(crate) crossed: Vec<bool>,
+    /// Sum of the squared residuals of the pair's local equations at the last
+    /// assembly (the merit of the globalised iterations, [`crate::transmission::step`]).
+    pub(crate) merit: f64,
+    /// Relay angles before the last full Newton update, and that update (the
+    /// globalised iterations' line search).
+    pub(crate) psi_back: Vec<f64>,
+    pub(crate) dpsi: Vec<f64>,
     /// Tridiagonal system of one rope side's relays (sub, diagonal, super, right side).
     pub(crate) tri: Vec<[f64; 4]>,
 }
@@ -73,6 +80,9 @@ impl RelayScratch {
             damping: vec![1.0; 2 * c.relays()],
             crossed: vec![false; 2 * c.relays()],
             tri: vec![[0.0; 4]; c.relays()],
+            merit: 0.0,
+            psi_back: vec![0.0; 2 * c.relays()],
+            dpsi: vec![0.0; 2 * c.relays()],
         }
     }
 }
@@ -315,6 +325,7 @@ pub(crate) fn assemble_residual(
             }
         }
     }
+    sc.merit = y.iter().map(|v| v * v).sum();
     sc.factor.solve_one(m, y);
     for (z, &v) in y.iter().enumerate() {
         sc.rhs[z * w] = v;
@@ -467,6 +478,7 @@ pub(crate) fn assemble(
             }
         }
     }
+    sc.merit = (0..l).map(|z| brhs[z * w] * brhs[z * w]).sum();
     if !fa.factor(m) {
         return Assembly::Singular;
     }

@@ -64,7 +64,11 @@ pub(crate) fn apply_relay_update(
                 sc.crossed[k] = true;
                 guarded = true;
             }
-            guarded |= sc.damping[k] < 1.0;
+            // A damped update is a safeguard's only while the undamped one is above the
+            // tolerance: below it the damping changes nothing that counts, and the step
+            // may end (else a relay damped once kept every later iteration guarded and
+            // the step crept to its iteration limit).
+            guarded |= sc.damping[k] < 1.0 && raw.abs() > tol * (1.0 + new.abs());
             if (new - old).abs() > tol * (1.0 + new.abs()) {
                 small = false;
             }

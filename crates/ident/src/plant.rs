@@ -1,0 +1,213 @@
+//! The plants the measurement loop drives: `fit`, `compare` and `diagnose` see a
+//! dataset through a [`Plant`], which simulates a run's recorded inputs with a model's
+//! numbers ([`PlantParams`]) and returns the channels the run measured. A fit changes
+//! numbers; the plant's structure (the rig of the dataset, the specimen) is built once.
+//!
+//! - [`RigPlant`]: the paper's rig (sine sweeps), driven by the recorded input angle;
+//!   channels `output_angle_rad` and, when the run recorded them, the four rope
+//!   tensions;
+//! - [`SpecimenPlant`]: a rope specimen (relaxation at constant strain, cyclic
+//!   load-strain), channel `tension_n`.
+//!
+//! [`plant_for`] picks the plant of a dataset. The arm (`arm_moves`) gets its plant
+//! with the arm's measurement loop.
+
+use longreach_drive::effects::DataKind;
+use longreach_drive::{rig_transfer, RigSpec as DriveRig};
+use num_complex::Complex64;
+
+use crate::dataset::{CyclicDataset, Dataset, DatasetKind, RelaxationDataset, SweepDataset};
+use crate::error::IdentError;
+use crate::model::PlantParams;
+use crate::sim;
+
+/// One simulated channel of a run, named as the dataset's column.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Channel {
+    /// Column name (`output_angle_rad`, `tension_in_1_n`, ...).
+    pub name: &'static str,
+    /// One value per sample of the run.
+    pub values: Vec<f64>,
+}
+
+/// The channels of one simulated run, the compared one ([`Self::primary`]) first.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Channels(pub Vec<Channel>);
+
+impl Channels {
+    /// The compared channel (output angle of a sweep, tension of a specimen).
+    pub fn primary(&self) -> &[f64] {
+        self.0.first().map_or(&[], |c| c.values.as_slice())
+    }
+
+    /// Takes the compared channel.
+    pub fn into_primary(self) -> Vec<f64> {
+        self.0
+            .into_iter()
+            .next()
+            .map_or_else(Vec::new, |c| c.values)
+    }
+
+    /// The channel called `name`.
+    pub fn get(&self, name: &str) -> Option<&[f64]> {
+        self.0
+            .iter()
+            .find(|c| c.name == name)
+            .map(|c| c.values.as_slice())
+    }
+}
+
+/// A plant the loop can drive: built once from a dataset, simulated with a model's
+/// numbers on each run's recorded inputs.
+pub trait Plant: Send + Sync + std::fmt::Debug {
+    /// The kind of data the plant reproduces.
+    fn kind(&self) -> DataKind;
+
+    /// Number of runs.
+    fn runs(&self) -> usize;
+
+    /// Simulates run `run` with the numbers `params` (the model's for that run,
+    /// [`crate::model::Model::plant_params`]): every channel the run measured, one
+    /// value per sample, the compared channel first.
+    fn simulate(&self, params: &PlantParams, run: usize) -> Result<Channels, IdentError>;
+
+    /// The plant's small-signal response (compared channel over input) of run `run`
+    /// at `frequency_hz`, when it has a closed form (eqs. 12-13 for the rig): fits use
+    /// it to start. `None`: no closed form.
+    fn small_signal_response(
+        &self,
+        _params: &PlantParams,
+        _run: usize,
+        _frequency_hz: f64,
+    ) -> Option<Complex64> {
+        None
+    }
+}
+
+/// The plant of a dataset, its sweeps simulated at the sample period over `substeps`.
+pub fn plant_for(ds: &Dataset, substeps: usize) -> Box<dyn Plant + '_> {
+    match &ds.kind {
+        DatasetKind::SineSweep(sw) => Box::new(RigPlant {
+            sweep: sw,
+            substeps,
+        }),
+        DatasetKind::Relaxation(rx) => Box::new(SpecimenPlant::Relaxation(rx)),
+        DatasetKind::Cyclic(cy) => Box::new(SpecimenPlant::Cyclic(cy)),
+    }
+}
+
+/// The paper's rig of a sweep dataset ([`crate::sim::simulate_sweep`]).
+#[derive(Debug)]
+pub struct RigPlant<'a> {
+    sweep: &'a SweepDataset,
+    substeps: usize,
+}
+
+impl RigPlant<'_> {
+    fn rig(&self, params: &PlantParams, run: usize) -> DriveRig {
+        let mut spec = sim::drive_rig(
+            &self.sweep.rig,
+            params.law.clone(),
+            self.sweep.runs[run].mean_tension_n,
+        );
+        if let Some(c) = params.output_damping_n_m_s {
+            spec.output_damping_n_m_s = c;
+        }
+        spec
+    }
+}
+
+impl Plant for RigPlant<'_> {
+    fn kind(&self) -> DataKind {
+        DataKind::SineSweep
+    }
+
+    fn runs(&self) -> usize {
+        self.sweep.runs.len()
+    }
+
+    fn simulate(&self, params: &PlantParams, run: usize) -> Result<Channels, IdentError> {
+        let r = &self.sweep.runs[run];
+        let s = sim::simulate_sweep(
+            self.rig(params, run),
+            &params.effects,
+            sim::drive_input(r),
+            r.dt_s(),
+            self.substeps,
+        )
+        .map_err(|source| IdentError::Simulation {
+            run: r.name.clone(),
+            source,
+        })?;
+        let mut out = vec![Channel {
+            name: "output_angle_rad",
+            values: s.output_rad,
+        }];
+        for (name, measured, values) in [
+            ("tension_in_1_n", &r.tension_in_1_n, s.tension_in_1_n),
+            ("tension_in_2_n", &r.tension_in_2_n, s.tension_in_2_n),
+            ("tension_out_1_n", &r.tension_out_1_n, s.tension_1_n),
+            ("tension_out_2_n", &r.tension_out_2_n, s.tension_2_n),
+        ] {
+            if measured.is_some() {
+                out.push(Channel { name, values });
+            }
+        }
+        Ok(Channels(out))
+    }
+
+    fn small_signal_response(
+        &self,
+        params: &PlantParams,
+        run: usize,
+        frequency_hz: f64,
+    ) -> Option<Complex64> {
+        Some(rig_transfer(&self.rig(params, run), frequency_hz))
+    }
+}
+
+/// A rope specimen: relaxation at constant strain (eq. 6) or a cyclic load-strain test.
+#[derive(Debug)]
+pub enum SpecimenPlant<'a> {
+    /// Tension relaxation ([`crate::sim::simulate_relaxation`]).
+    Relaxation(&'a RelaxationDataset),
+    /// Cyclic test ([`crate::sim::simulate_cyclic`]).
+    Cyclic(&'a CyclicDataset),
+}
+
+impl Plant for SpecimenPlant<'_> {
+    fn kind(&self) -> DataKind {
+        match self {
+            Self::Relaxation(_) => DataKind::Relaxation,
+            Self::Cyclic(_) => DataKind::Cyclic,
+        }
+    }
+
+    fn runs(&self) -> usize {
+        match self {
+            Self::Relaxation(rx) => rx.runs.len(),
+            Self::Cyclic(cy) => cy.runs.len(),
+        }
+    }
+
+    fn simulate(&self, params: &PlantParams, run: usize) -> Result<Channels, IdentError> {
+        let (name, out) = match self {
+            Self::Relaxation(rx) => (
+                &rx.runs[run].name,
+                sim::simulate_relaxation(&params.law, rx.specimen.strain, &rx.runs[run].time_s),
+            ),
+            Self::Cyclic(cy) => (
+                &cy.runs[run].name,
+                sim::simulate_cyclic(&params.law, &cy.runs[run].time_s, &cy.runs[run].strain),
+            ),
+        };
+        let values = out.map_err(|source| IdentError::Simulation {
+            run: name.clone(),
+            source,
+        })?;
+        Ok(Channels(vec![Channel {
+            name: "tension_n",
+            values,
+        }]))
+    }
+}
