@@ -391,6 +391,7 @@ impl RigModel {
     /// ([`ideal::evaluate`]); exact on piecewise-affine ropes once no rope changes
     /// piece. (The `2 x 2` solve in `(phi, x)` is the pair block's Schur complement
     /// solved directly: the same Newton step, in the arithmetic the rig always had.)
+    #[inline]
     fn step_fast(&self, st: &mut RigState, input_rad: f64) -> Result<(), DriveError> {
         let pair = &self.drive.pairs[0];
         let h = self.drive.dt_s();
@@ -407,26 +408,24 @@ impl RigModel {
         let ps = &mut st.plant;
         let fits =
             ps.relays.first().is_some_and(|r| r.spans.is_empty()) && ps.effect_state.is_empty();
+        // (The joint and motor references of the fast path stay at rest: nothing reads
+        // them; the input angle is the motor's.)
         let PlantState {
             time_s,
             q_rad,
             qd_rad_s,
             qdd_rad_s2,
-            q_ref_rad,
             motor_rad,
-            motor_ref_rad,
             carriage_m,
             ropes,
             ..
         } = ps;
-        let (true, [q], [qd], [qdd], [q_ref], [motor], [motor_ref], [carriage], [ropes]) = (
+        let (true, [q], [qd], [qdd], [motor], [carriage], [ropes]) = (
             fits,
             q_rad.as_mut_slice(),
             qd_rad_s.as_mut_slice(),
             qdd_rad_s2.as_mut_slice(),
-            q_ref_rad.as_mut_slice(),
             motor_rad.as_mut_slice(),
-            motor_ref_rad.as_mut_slice(),
             carriage_m.as_mut_slice(),
             ropes.as_mut_slice(),
         ) else {
@@ -517,9 +516,7 @@ impl RigModel {
         *q = phi;
         *qd = w1;
         *qdd = a1;
-        *q_ref = phi;
         *motor = input_rad;
-        *motor_ref = input_rad;
         *carriage = x;
         if !finite || w1.abs() > 1e6 {
             return Err(self.blow_up(st, "tensions"));
@@ -527,6 +524,7 @@ impl RigModel {
         Ok(())
     }
 
+    #[cold]
     fn blow_up(&self, st: &RigState, tensions: &str) -> DriveError {
         DriveError::BlowUp {
             time_s: st.time_s(),
