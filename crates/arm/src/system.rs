@@ -119,6 +119,21 @@ fn bad(field: &str, reason: String) -> ArmError {
     }
 }
 
+/// One command per joint of an arm of `n` joints.
+fn check_commands(commands: &[Command], n: usize) -> Result<(), ArmError> {
+    if commands.len() == n {
+        Ok(())
+    } else {
+        Err(bad(
+            "command",
+            format!(
+                "{} commands for {n} joints: give one per joint",
+                commands.len()
+            ),
+        ))
+    }
+}
+
 impl From<DriveError> for ArmError {
     fn from(e: DriveError) -> Self {
         match e {
@@ -167,15 +182,7 @@ impl DrivenArm {
             return Err(ArmError::BadTimeStep { dt_s });
         }
         crate::error::check_joint_vector(&spec.name, n, "initial_q_rad", &initial_q_rad)?;
-        if commands.len() != n {
-            return Err(bad(
-                "command",
-                format!(
-                    "{} commands for {n} joints: give one per joint",
-                    commands.len()
-                ),
-            ));
-        }
+        check_commands(&commands, n)?;
         let mut seen = vec![false; n];
         let mut compiled = Vec::with_capacity(pairs.len());
         for (i, p) in pairs.iter().enumerate() {
@@ -364,16 +371,7 @@ impl DrivenArm {
 
     /// The same arm driven by other commands (one per joint).
     pub fn with_commands(mut self, commands: Vec<Command>) -> Result<Self, ArmError> {
-        let n = self.spec.ndofs();
-        if commands.len() != n {
-            return Err(bad(
-                "command",
-                format!(
-                    "{} commands for {n} joints: give one per joint",
-                    commands.len()
-                ),
-            ));
-        }
+        check_commands(&commands, self.spec.ndofs())?;
         self.commands = commands;
         Ok(self)
     }

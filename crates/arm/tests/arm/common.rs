@@ -152,3 +152,33 @@ pub fn arm5_driven_preload(motor: MotorSpec, commands: Vec<Command>, preload_n: 
     );
     DrivenArm::new(spec, pairs, commands, vec![0.0; 5], 1e-3).unwrap()
 }
+
+/// The paper's rig's rope pair for robots/rig/rig.urdf through the arm path: one rope
+/// per side of `law` between the kinematic motor (r1 = 25 mm) and the output pulley
+/// (r2 = 25 mm), L = 15.2 m, no relays.
+pub fn rig_pair(
+    rope: &str,
+    law: RopeLaw,
+    preload_n: f64,
+    prestretch_n: f64,
+    tensioner: Tensioner,
+) -> PairSpec {
+    PairSpec {
+        joint: 0,
+        rope_name: rope.into(),
+        rope: Catalog::builtin().get(rope).unwrap().clone(),
+        law,
+        ropes_in_parallel: 1,
+        joint_radius_m: 0.025,
+        motor_radius_m: 0.025,
+        route: vec![],
+        length_m: 15.2,
+        span_lengths_m: vec![15.2],
+        preload_n,
+        prestretch_n,
+        tensioner,
+        motor: kinematic(),
+        effects: vec![],
+        relay_friction: None,
+    }
+}

@@ -4,7 +4,7 @@
 
 use crate::common;
 
-use common::{kinematic, robot_path};
+use common::{rig_pair, robot_path};
 use longreach_arm::transmission::{PairSpec, Tensioner};
 use longreach_arm::{parse_urdf, Command, DrivenArm, DrivenState};
 use longreach_drive::effects::{self, Applied, BearingFriction, JointFriction};
@@ -20,24 +20,8 @@ fn rig_urdf(dynamics: &str) -> longreach_arm::ArmSpec {
 
 fn pair() -> PairSpec {
     let params = Catalog::builtin().get("stainless1").unwrap().clone();
-    PairSpec {
-        joint: 0,
-        rope_name: "stainless1".into(),
-        law: RopeLaw::from_params(&params, LawKind::Elastic).unwrap(),
-        rope: params,
-        ropes_in_parallel: 1,
-        joint_radius_m: 0.025,
-        motor_radius_m: 0.025,
-        route: vec![],
-        length_m: 15.2,
-        span_lengths_m: vec![15.2],
-        preload_n: 300.0,
-        prestretch_n: 0.0,
-        tensioner: Tensioner::Fixed,
-        motor: kinematic(),
-        effects: vec![],
-        relay_friction: None,
-    }
+    let law = RopeLaw::from_params(&params, LawKind::Elastic).unwrap();
+    rig_pair("stainless1", law, 300.0, 0.0, Tensioner::Fixed)
 }
 
 /// The motor steps by 0.1 rad at t = 0.5 ms and holds: the pulley oscillates and the

@@ -4,8 +4,8 @@
 
 use crate::common;
 
-use common::{kinematic, robot_path};
-use longreach_arm::transmission::{PairSpec, Tensioner};
+use common::{rig_pair, robot_path};
+use longreach_arm::transmission::Tensioner;
 use longreach_arm::{load_urdf, Command, DrivenArm};
 use longreach_drive::sweep::{frequency_response, run};
 use longreach_drive::{InputSignal, RigModel, RigSpec, RigTrace, SteppedSine};
@@ -31,24 +31,7 @@ fn compare(rope: &str, kind: LawKind, mean_tension_n: f64) {
 
     // Plant 2: robots/rig/rig.urdf through the arm path.
     let spec = load_urdf(robot_path("rig/rig.urdf")).unwrap();
-    let pair = PairSpec {
-        joint: 0,
-        rope_name: rope.into(),
-        rope: params,
-        law,
-        ropes_in_parallel: 1,
-        joint_radius_m: 0.025,
-        motor_radius_m: 0.025,
-        route: vec![],
-        length_m: 15.2,
-        span_lengths_m: vec![15.2],
-        preload_n: mean_tension_n,
-        prestretch_n: 490.0,
-        tensioner: Tensioner::ConstantForce,
-        motor: kinematic(),
-        effects: vec![],
-        relay_friction: None,
-    };
+    let pair = rig_pair(rope, law, mean_tension_n, 490.0, Tensioner::ConstantForce);
     let arm = DrivenArm::new(
         spec,
         vec![pair],
