@@ -153,7 +153,9 @@ impl Plant for RigPlant<'_> {
                 out.push(Channel { name, values });
             }
         }
-        Ok(Channels(out))
+        let mut channels = Channels(out);
+        apply_sensors(params, &r.time_s, &mut channels)?;
+        Ok(channels)
     }
 
     fn small_signal_response(
@@ -162,8 +164,41 @@ impl Plant for RigPlant<'_> {
         run: usize,
         frequency_hz: f64,
     ) -> Option<Complex64> {
-        Some(rig_transfer(&self.rig(params, run), frequency_hz))
+        let mut h = rig_transfer(&self.rig(params, run), frequency_hz);
+        // Linear sensors on the output multiply it (a delay: its phase).
+        for a in &params.effects {
+            if let Ok(Some(sensor)) = a.sensor() {
+                if sensor.acts_on("output_angle_rad") {
+                    h *= sensor.response(frequency_hz)?;
+                }
+            }
+        }
+        Some(h)
     }
+}
+
+/// Applies the sensor-site effects of `params` to the channels they act on (what the
+/// sensors report of the simulated quantities), sampled at `time_s`.
+pub fn apply_sensors(
+    params: &PlantParams,
+    time_s: &[f64],
+    channels: &mut Channels,
+) -> Result<(), IdentError> {
+    for a in &params.effects {
+        let Some(sensor) = a.sensor().map_err(|source| {
+            IdentError::Model(crate::model::ModelError::Effect {
+                effect: a.effect.name(),
+                source,
+            })
+        })?
+        else {
+            continue;
+        };
+        for c in channels.0.iter_mut().filter(|c| sensor.acts_on(c.name)) {
+            sensor.apply(time_s, &mut c.values);
+        }
+    }
+    Ok(())
 }
 
 /// A rope specimen: relaxation at constant strain (eq. 6) or a cyclic load-strain test.
@@ -205,9 +240,15 @@ impl Plant for SpecimenPlant<'_> {
             run: name.clone(),
             source,
         })?;
-        Ok(Channels(vec![Channel {
+        let mut channels = Channels(vec![Channel {
             name: "tension_n",
             values,
-        }]))
+        }]);
+        let time_s = match self {
+            Self::Relaxation(rx) => &rx.runs[run].time_s,
+            Self::Cyclic(cy) => &cy.runs[run].time_s,
+        };
+        apply_sensors(params, time_s, &mut channels)?;
+        Ok(channels)
     }
 }

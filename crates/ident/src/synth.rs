@@ -9,6 +9,7 @@ use crate::dataset::{
 };
 use crate::error::IdentError;
 use crate::model::Model;
+use crate::plant::{apply_sensors, Channel, Channels};
 use crate::sensors::{Encoder, GaussianNoise};
 use crate::sim;
 
@@ -101,12 +102,19 @@ pub fn sweep(model: &Model, opt: &SweepOptions) -> Result<SweepDataset, IdentErr
             })
             .collect();
         let params = model.plant_params(r)?;
-        let mut spec = sim::drive_rig(&opt.rig, params.law, tension);
+        let mut spec = sim::drive_rig(&opt.rig, params.law.clone(), tension);
         if let Some(c) = params.output_damping_n_m_s {
             spec.output_damping_n_m_s = c;
         }
-        let s = sim::simulate_sweep(spec, &params.effects, &command, opt.dt_s, opt.substeps)
+        let mut s = sim::simulate_sweep(spec, &params.effects, &command, opt.dt_s, opt.substeps)
             .map_err(IdentError::Drive)?;
+        // What the sensors report of it (sensor-site effects hidden in the data).
+        let mut reported = Channels(vec![Channel {
+            name: "output_angle_rad",
+            values: std::mem::take(&mut s.output_rad),
+        }]);
+        apply_sensors(&params, &time_s, &mut reported)?;
+        s.output_rad = reported.into_primary();
         let noise = |ch: u64, x: &[f64]| -> Result<Vec<f64>, IdentError> {
             let mut g = GaussianNoise::new(
                 opt.tension_noise_n,

@@ -11,6 +11,7 @@
 //! | [`Effect::on_law`] | rope law | change the constitutive law of every rope (span) it applies to |
 //! | [`Effect::on_pair`] | span, relay pulley, motor | change a rope pair's spec (relays, motor, tensioner) |
 //! | [`Effect::joint_force`] | joint | add a passive torque at a joint, with states of its own ([`JointForce`]) |
+//! | [`Effect::sensor`] | sensor | transform what a sensor reports of a channel ([`SensorModel`]) |
 //!
 //! A plant applies them when it is built ([`Applied`]): the rig to its one pair and its
 //! output shaft ([`crate::RigModel::with_effects`]), the arm to each transmission's pair
@@ -85,6 +86,7 @@ mod nonlinear_creep;
 mod nonlinear_stiffness;
 mod plastic_ratchet;
 mod relay_friction;
+mod sensor_delay;
 
 pub use crate::transmission::{JointForce, JointTorque};
 pub use extra_retardation::ExtraRetardation;
@@ -94,6 +96,7 @@ pub use nonlinear_creep::NonlinearCreepEffect;
 pub use nonlinear_stiffness::NonlinearStiffness;
 pub use plastic_ratchet::PlasticRatchet;
 pub use relay_friction::RelayFrictionEffect;
+pub use sensor_delay::{Delay, SensorDelay};
 
 use std::sync::Arc;
 
@@ -128,7 +131,7 @@ pub enum Site {
     Link,
     /// The motor of a rope pair ([`Effect::on_pair`]).
     Motor,
-    /// A measured channel (no hook yet).
+    /// A measured channel ([`Effect::sensor`]).
     Sensor,
 }
 
@@ -215,6 +218,27 @@ pub trait Effect: Sync + std::fmt::Debug {
     fn joint_force(&self, _values: &[f64]) -> Result<Option<Arc<dyn JointForce>>, DriveError> {
         Ok(None)
     }
+    /// Sensor site: how the effect changes what a sensor reports (`None`: it does not).
+    fn sensor(&self, _values: &[f64]) -> Result<Option<Arc<dyn SensorModel>>, DriveError> {
+        Ok(None)
+    }
+}
+
+/// What a sensor-site effect does to a measured channel: the plant simulates the true
+/// quantity, the sensor model turns it into what the sensor reports, and that is what
+/// is compared with the measurement.
+pub trait SensorModel: Send + Sync + std::fmt::Debug {
+    /// Whether it acts on the channel called `channel` (a dataset column name, e.g.
+    /// `output_angle_rad`).
+    fn acts_on(&self, channel: &str) -> bool;
+    /// Turns the true values of the channel, sampled at `time_s`, into the reported ones,
+    /// in place.
+    fn apply(&self, time_s: &[f64], values: &mut [f64]);
+    /// Its small-signal response at `frequency_hz` (reported over true), when it is
+    /// linear and has one: fits start from the plant's closed-form response times it.
+    fn response(&self, _frequency_hz: f64) -> Option<num_complex::Complex64> {
+        None
+    }
 }
 
 /// Every registered effect, one line each.
@@ -226,6 +250,7 @@ pub static REGISTRY: &[&dyn Effect] = &[
     &plastic_ratchet::PlasticRatchet,
     &relay_friction::RelayFrictionEffect,
     &joint_friction::JointFriction,
+    &sensor_delay::SensorDelay,
 ];
 
 /// The registered effect called `name`.
@@ -312,5 +337,10 @@ impl Applied {
     /// The passive torque the effect adds at a joint, if any.
     pub fn joint_force(&self) -> Result<Option<Arc<dyn JointForce>>, DriveError> {
         self.effect.joint_force(&self.values)
+    }
+
+    /// What the effect does to a sensor, if anything.
+    pub fn sensor(&self) -> Result<Option<Arc<dyn SensorModel>>, DriveError> {
+        self.effect.sensor(&self.values)
     }
 }

@@ -8,5 +8,6 @@ mod diagnose_loop;
 mod examples;
 mod fitting;
 mod metrics;
+mod new_effects;
 mod relay_friction;
 mod sensors;
