@@ -9,7 +9,9 @@ use longreach_ident::model::{BaseParam, Model, ParamDef};
 use longreach_ident::synth::{self, SweepOptions};
 use longreach_ident::Dataset;
 
-fn base() -> Model {
+/// The baseline of the tests: the paper's model of the example sweep with `k1_scale`
+/// fitted, global.
+pub(crate) fn base() -> Model {
     let ds0 = Dataset::load(
         std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../data/examples/example_sweep_control"),
@@ -20,13 +22,9 @@ fn base() -> Model {
     base
 }
 
-/// Hides `name` with `values` in a three-run sweep and diagnoses it; returns the winner
-/// and its fitted parameters.
-fn hide_and_diagnose(
-    name: &str,
-    values: &[f64],
-    seed: u64,
-) -> (Option<String>, Vec<(String, f64)>) {
+/// A three-run dyneema2 sweep (147 N at 4.5 and 1.5 deg, 294 N at 3 deg) with `name`
+/// hidden at `values`, written to a temporary folder and read back.
+pub(crate) fn hidden_sweep(name: &str, values: &[f64], seed: u64) -> Dataset {
     let e = effects::find(name).unwrap();
     let mut opt = SweepOptions::paper("dyneema2", seed);
     opt.runs = vec![
@@ -47,7 +45,17 @@ fn hide_and_diagnose(
         .unwrap()
         .write(&path, "hidden")
         .unwrap();
-    let ds = Dataset::load(&path).unwrap();
+    Dataset::load(&path).unwrap()
+}
+
+/// Hides `name` with `values` in a three-run sweep and diagnoses it; returns the winner
+/// and its fitted parameters.
+fn hide_and_diagnose(
+    name: &str,
+    values: &[f64],
+    seed: u64,
+) -> (Option<String>, Vec<(String, f64)>) {
+    let ds = hidden_sweep(name, values, seed);
     let prep = Prepared::new(&ds).unwrap();
     let (d, base_fit, _) = diagnose(&prep, &base()).unwrap();
     eprintln!(
