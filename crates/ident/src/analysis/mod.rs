@@ -12,12 +12,15 @@
 //! * `compare.rs`: a model measured against the data ([`compare`]: the error per run and
 //!   per test frequency, where it concentrates, residual checks, resonances);
 //! * `diagnose.rs`: the baseline and every applicable registered effect fitted, ranked,
-//!   and the missing effect named when the evidence is decisive ([`diagnose`]).
+//!   and the missing effect named when the evidence is decisive ([`diagnose`]);
+//! * `signature.rs`: the residual's signatures, each with the simplest term that would
+//!   produce it, its size and the share of the excess error it removes ([`signatures`]).
 
 mod compare;
 mod diagnose;
 mod fit;
 mod prepare;
+mod signature;
 
 pub use compare::{
     compare, Comparison, FrequencyError, ResidualChecks, RunError, RunResonance, Where,
@@ -28,3 +31,4 @@ pub use diagnose::{
 };
 pub use fit::{fit_model, screen_model, Fitted};
 pub use prepare::{noise_sigma_second_difference, Prepared, RunData};
+pub use signature::{describe, signatures, Equivalent, Signature, SignatureKind};

@@ -11,3 +11,4 @@ mod metrics;
 mod new_effects;
 mod relay_friction;
 mod sensors;
+mod signatures;

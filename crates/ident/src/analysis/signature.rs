@@ -1,0 +1,1034 @@
+//! The residual's signatures, quantified: for every pattern `diagnose` finds in a
+//! baseline's residual (phase error growing with frequency, residual following the sign
+//! of the velocity, harmonics, error depending on the mean tension or on the amplitude,
+//! drift), the simplest term that would produce it, its size in physical units, and the
+//! share of the baseline's excess squared error (`SSR - SSR_floor`) that adding the term
+//! removes. Each share is measured: the term is applied to the model's simulated channel
+//! (or the model re-simulated with it) and the SSR recomputed over the analysed samples.
+//!
+//! | signature | term | size |
+//! |---|---|---|
+//! | phase error grows with frequency | a pure delay of the output (the registry's `sensor_delay`, [`Delay`]) | `tau` [s] |
+//! | residual follows the velocity's sign | a dry torque at the output shaft, `-F sign(w)`, through the rig's small-signal dynamics (sweeps); `-a sign(rate)` on the channel otherwise | `F` [N*m] (sweeps), `a` [channel unit] |
+//! | harmonics at 2f / 3f | a non-linear term: the residual's 2f and 3f components of every frequency step | largest amplitude [rad] |
+//! | error depends on the mean tension | a stiffness per run (`k1` scaled), its log-slope against the tension | `d ln k1 / dT` [1/N] |
+//! | error depends on the amplitude | a damping per run; dry friction by the describing function `C_eq = C_v + 4 F / (pi V)` | `F` [N*m] |
+//! | drift over time | a term linear in time (common slope, each run's offset) | slope [channel unit / s] |
+//!
+//! See `docs/models.md`, "Residual signatures".
+
+use longreach_drive::effects::{DataKind, Delay, SensorModel};
+use num_complex::Complex64;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::f64::consts::{PI, TAU};
+
+use super::compare::dft;
+use super::{Comparison, Prepared, RunData, RunError, FLOOR_MARGIN};
+use crate::dataset::DatasetKind;
+use crate::error::IdentError;
+use crate::fitting::{fit, FitOptions, ParamSpec, ResidualError, Residuals};
+use crate::metrics;
+use crate::model::{Model, PlantParams};
+
+/// The patterns a residual can show.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SignatureKind {
+    /// The phase error (model minus measured) grows with the test frequency.
+    PhaseGrowsWithFrequency,
+    /// The residual follows the sign of the velocity.
+    VelocitySign,
+    /// The residual has components at 2f and 3f of the test frequency.
+    Harmonics,
+    /// The per-run error correlates with the mean tension.
+    TensionDependence,
+    /// The per-run error depends on the input amplitude.
+    AmplitudeDependence,
+    /// The residual correlates with time.
+    Drift,
+}
+
+/// The same term's size in another quantity (e.g. a dry torque as the angle offset it
+/// leaves at low frequency).
+#[derive(Debug, Clone, Serialize)]
+pub struct Equivalent {
+    /// What the value is.
+    pub what: &'static str,
+    /// Its value.
+    pub value: f64,
+    /// Its unit.
+    pub unit: &'static str,
+}
+
+/// One signature of a residual, with the simplest term that produces it.
+#[derive(Debug, Clone, Serialize)]
+pub struct Signature {
+    /// The pattern.
+    pub kind: SignatureKind,
+    /// What was seen in the residual, in words (with the statistic that detected it).
+    pub evidence: String,
+    /// The simplest term that would produce it, in words, ending with its symbol.
+    pub term: String,
+    /// What else the reader should know of the term (how it was fitted, per-run values).
+    pub note: String,
+    /// The term's fitted size, in `unit` (NaN, i.e. null in JSON, when it could not be
+    /// fitted).
+    pub size: f64,
+    /// Unit of `size`.
+    pub unit: &'static str,
+    /// The size in another quantity, when one helps.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub equivalent: Option<Equivalent>,
+    /// Share of the baseline's excess squared error above the noise floor,
+    /// `(SSR - SSR_with_term) / (SSR - SSR_floor)`, that the term removes (0 when the
+    /// baseline has no excess).
+    pub share_removed: f64,
+    /// The same reduction of the SSR over the floor's SSR (meaningful at the floor too).
+    pub removed_over_floor: f64,
+}
+
+impl Signature {
+    /// One clause for the explanation: evidence, term, size and share.
+    pub fn sentence(&self) -> String {
+        if !self.share_removed.is_finite() {
+            return format!("{} ({})", self.evidence, self.note);
+        }
+        let eq = self
+            .equivalent
+            .as_ref()
+            .map(|e| format!(", {} = {}", e.what, quantity(e.value, e.unit)))
+            .unwrap_or_default();
+        let note = if self.note.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", self.note)
+        };
+        format!(
+            "{}: {} = {}{eq} would remove {:.0}% of the excess error{note}",
+            self.evidence,
+            self.term,
+            quantity(self.size, self.unit),
+            100.0 * self.share_removed
+        )
+    }
+}
+
+/// The explanation's "Residual signature: ..." sentence.
+pub fn describe(signatures: &[Signature]) -> String {
+    if signatures.is_empty() {
+        "Residual signature: no clear pattern (white-ish, no harmonics, no drift).".into()
+    } else {
+        let parts: Vec<String> = signatures.iter().map(Signature::sentence).collect();
+        format!("Residual signature: {}.", parts.join("; "))
+    }
+}
+
+/// A value with its unit, delays in ms.
+fn quantity(v: f64, unit: &str) -> String {
+    if unit == "s" && v.abs() < 1.0 {
+        return format!("{:.1} ms", v * 1e3);
+    }
+    let a = v.abs();
+    let num = if a != 0.0 && !(1e-2..1e4).contains(&a) {
+        format!("{v:.2e}")
+    } else {
+        format!("{v:.3}")
+    };
+    if unit == "1" {
+        num
+    } else {
+        format!("{num} {unit}")
+    }
+}
+
+/// The baseline's residual and what a term is measured against.
+struct Base<'p, 'a> {
+    prep: &'p Prepared<'a>,
+    model: &'p Model,
+    sims: &'p [Vec<f64>],
+    /// SSR of the baseline over the analysed samples.
+    ssr: f64,
+    /// The noise floor's SSR.
+    ssr_floor: f64,
+}
+
+impl Base<'_, '_> {
+    /// SSR of run `r`'s channel `y` over its analysed samples.
+    fn ssr_run(&self, r: usize, y: &[f64]) -> f64 {
+        let run = &self.prep.runs[r];
+        run.idx
+            .iter()
+            .map(|&i| (y[i] - run.measured[i]).powi(2))
+            .sum()
+    }
+
+    /// `(share_removed, removed_over_floor)` of a term that leaves `ssr_after`.
+    fn shares(&self, ssr_after: f64) -> (f64, f64) {
+        let removed = self.ssr - ssr_after;
+        let excess = self.ssr - self.ssr_floor;
+        (
+            if excess > 0.0 { removed / excess } else { 0.0 },
+            removed / self.ssr_floor.max(f64::MIN_POSITIVE),
+        )
+    }
+
+    fn signature(
+        &self,
+        kind: SignatureKind,
+        evidence: String,
+        term: Result<Term, IdentError>,
+    ) -> Signature {
+        match term {
+            Ok(t) => {
+                let (share_removed, removed_over_floor) = self.shares(t.ssr_after);
+                Signature {
+                    kind,
+                    evidence,
+                    term: t.term,
+                    note: t.note,
+                    size: t.size,
+                    unit: t.unit,
+                    equivalent: t.equivalent,
+                    share_removed,
+                    removed_over_floor,
+                }
+            }
+            Err(e) => Signature {
+                kind,
+                evidence,
+                term: String::new(),
+                note: format!("not quantified: {e}"),
+                size: f64::NAN,
+                unit: "",
+                equivalent: None,
+                share_removed: f64::NAN,
+                removed_over_floor: f64::NAN,
+            },
+        }
+    }
+
+    /// The plant parameters of run `r`.
+    fn params(&self, r: usize) -> Result<PlantParams, IdentError> {
+        Ok(self.model.plant_params(r)?)
+    }
+
+    /// The measured frequency response of run `r` at its test frequencies (from the
+    /// comparison), `(frequency_hz, H)`.
+    fn measured_frf(&self, cmp: &Comparison, r: usize) -> Vec<(f64, Complex64)> {
+        let name = &self.prep.runs[r].name;
+        cmp.frequency
+            .iter()
+            .filter(|p| &p.run == name)
+            .map(|p| {
+                (
+                    p.frequency_hz,
+                    Complex64::from_polar(
+                        10f64.powf(p.gain_measured_db / 20.0),
+                        p.phase_measured_deg.to_radians(),
+                    ),
+                )
+            })
+            .collect()
+    }
+}
+
+/// What a term leaves and how large it is.
+struct Term {
+    term: String,
+    note: String,
+    size: f64,
+    unit: &'static str,
+    equivalent: Option<Equivalent>,
+    ssr_after: f64,
+}
+
+/// A term added to a sweep model: its parameters act on a run's plant numbers (a
+/// stiffness, a damping), on the analytic response and on the simulated output (a
+/// sensor's delay). Its size and share come from [`fit_sweep_term`].
+struct SweepTerm<'t> {
+    /// The term's parameters (their starting values estimated from the data).
+    specs: Vec<ParamSpec>,
+    /// The values at which the term does nothing.
+    neutral: Vec<f64>,
+    /// Refit the baseline's free parameters with it.
+    refit_base: bool,
+    /// Puts the term's values into run `r`'s plant numbers.
+    on_plant: &'t (dyn Fn(&[f64], usize, &mut PlantParams) + Sync),
+    /// What a sensor term does: the factor on the analytic response at `f`, and the
+    /// transform of a simulated output sampled at `time_s`.
+    sensor: Option<SensorTerm<'t>>,
+}
+
+/// The sensor part of a [`SweepTerm`].
+struct SensorTerm<'t> {
+    response: &'t (dyn Fn(&[f64], f64) -> Complex64 + Sync),
+    output: &'t (dyn Fn(&[f64], &[f64], &[f64]) -> Vec<f64> + Sync),
+}
+
+/// The baseline's free parameters and a term's, fitted together: on the analytic
+/// response (squared log ratios of the measured one) for a start, then on the
+/// simulation (least squares over the analysed samples).
+struct TermFit<'p, 'a, 't> {
+    b: &'p Base<'p, 'a>,
+    term: &'p SweepTerm<'t>,
+    n_base: usize,
+    frf: Vec<Vec<(f64, Complex64)>>,
+}
+
+impl TermFit<'_, '_, '_> {
+    /// The plant numbers of run `r` at `x` (baseline's free values, then the term's).
+    fn plant(&self, x: &[f64], r: usize) -> Result<PlantParams, IdentError> {
+        let (xb, xt) = x.split_at(self.n_base);
+        let mut p = if self.n_base > 0 {
+            self.b
+                .model
+                .with_values(xb, self.b.prep.runs.len())
+                .plant_params(r)?
+        } else {
+            self.b.params(r)?
+        };
+        (self.term.on_plant)(xt, r, &mut p);
+        Ok(p)
+    }
+
+    /// Log-ratio residuals of the analytic response.
+    fn frf_residuals(&self, x: &[f64], out: &mut Vec<f64>) -> Result<(), IdentError> {
+        out.clear();
+        let prep = self.b.prep;
+        for (r, points) in self.frf.iter().enumerate() {
+            let p = self.plant(x, r)?;
+            for &(f, h) in points {
+                let mut m =
+                    prep.plant
+                        .small_signal_response(&p, r, f)
+                        .ok_or(IdentError::NotASweep {
+                            kind: prep.ds.kind.name(),
+                        })?;
+                if let Some(s) = &self.term.sensor {
+                    m *= (s.response)(&x[self.n_base..], f);
+                }
+                let d = (m / h).ln();
+                out.push(d.re);
+                out.push(d.im);
+            }
+        }
+        Ok(())
+    }
+
+    /// The simulated output of every run at `x`.
+    fn simulate(&self, x: &[f64]) -> Result<Vec<Vec<f64>>, IdentError> {
+        let prep = self.b.prep;
+        (0..prep.runs.len())
+            .into_par_iter()
+            .map(|r| {
+                let y = prep.plant.simulate(&self.plant(x, r)?, r)?.into_primary();
+                Ok(match &self.term.sensor {
+                    Some(s) => (s.output)(&x[self.n_base..], &prep.runs[r].time_s, &y),
+                    None => y,
+                })
+            })
+            .collect()
+    }
+
+    fn ssr(&self, x: &[f64]) -> f64 {
+        self.simulate(x).map_or(f64::INFINITY, |sims| {
+            (0..sims.len()).map(|r| self.b.ssr_run(r, &sims[r])).sum()
+        })
+    }
+}
+
+/// The analytic-response problem of a [`TermFit`].
+struct FrfOf<'f, 'p, 'a, 't>(&'f TermFit<'p, 'a, 't>);
+
+impl Residuals for FrfOf<'_, '_, '_, '_> {
+    fn residuals(&self, x: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
+        Ok(self.0.frf_residuals(x, out)?)
+    }
+}
+
+/// The time-domain problem of a [`TermFit`].
+struct SimOf<'f, 'p, 'a, 't>(&'f TermFit<'p, 'a, 't>);
+
+impl Residuals for SimOf<'_, '_, '_, '_> {
+    fn residuals(&self, x: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
+        *out = self.0.b.prep.residuals_of(&self.0.simulate(x)?);
+        Ok(())
+    }
+}
+
+/// Adds `term` to the baseline and fits it (with the baseline's free parameters when
+/// `term.refit_base`): least squares on the analytic response from the term's
+/// starting values, then on the simulation from the better of that point and the
+/// baseline with the term neutral (so the term never leaves more than the baseline).
+/// Returns the term's values and the SSR it leaves.
+fn fit_sweep_term(
+    b: &Base<'_, '_>,
+    cmp: &Comparison,
+    term: &SweepTerm<'_>,
+) -> Result<(Vec<f64>, f64), IdentError> {
+    let n_runs = b.prep.runs.len();
+    let base_specs = if term.refit_base {
+        b.model.fit_specs(n_runs)
+    } else {
+        Vec::new()
+    };
+    let tf = TermFit {
+        b,
+        term,
+        n_base: base_specs.len(),
+        frf: (0..n_runs).map(|r| b.measured_frf(cmp, r)).collect(),
+    };
+    let mut specs = base_specs;
+    specs.extend(term.specs.iter().cloned());
+    let initial: Vec<f64> = specs.iter().map(|s| s.initial).collect();
+    let analytic = fit(
+        &FrfOf(&tf),
+        &specs,
+        &FitOptions {
+            tolerance: 1e-8,
+            gtol: 1e-10,
+            patience: 40,
+            diff_step: 1e-6,
+        },
+    )
+    .map_or(initial.clone(), |r| r.values);
+    let mut neutral: Vec<f64> = initial[..tf.n_base].to_vec();
+    neutral.extend(&term.neutral);
+    let start = if tf.ssr(&analytic) <= tf.ssr(&neutral) {
+        analytic
+    } else {
+        neutral
+    };
+    for (s, &v) in specs.iter_mut().zip(&start) {
+        let span = s.upper - s.lower;
+        s.initial = v.clamp(s.lower + 1e-6 * span, s.upper - 1e-6 * span);
+    }
+    let r = fit(
+        &SimOf(&tf),
+        &specs,
+        &FitOptions {
+            tolerance: 1e-6,
+            gtol: 1e-8,
+            patience: 8,
+            diff_step: 1e-5,
+        },
+    )?;
+    Ok((r.values[tf.n_base..].to_vec(), r.ssr))
+}
+
+/// Every signature the baseline's residual shows, each with its term, size and share.
+/// `model` is the (fitted) baseline, `sims` its simulated channel of every run and `cmp`
+/// its comparison with the data ([`super::compare`]).
+pub fn signatures(
+    prep: &Prepared<'_>,
+    model: &Model,
+    sims: &[Vec<f64>],
+    cmp: &Comparison,
+) -> Vec<Signature> {
+    let ssr_floor = prep
+        .runs
+        .iter()
+        .map(|r| r.noise_sigma.powi(2) * r.idx.len() as f64)
+        .sum();
+    let mut base = Base {
+        prep,
+        model,
+        sims,
+        ssr: 0.0,
+        ssr_floor,
+    };
+    base.ssr = (0..prep.runs.len())
+        .map(|r| base.ssr_run(r, &sims[r]))
+        .sum();
+    let b = &base;
+    let r = &cmp.residual;
+    let mut out = Vec::new();
+    if cmp.frequency.len() >= 4 {
+        let (f, p): (Vec<f64>, Vec<f64>) = cmp
+            .frequency
+            .iter()
+            .map(|x| (x.frequency_hz, x.phase_error_deg))
+            .unzip();
+        if let Ok(c) = metrics::pearson(&f, &p) {
+            if c.abs() > 0.8 {
+                out.push(b.signature(
+                    SignatureKind::PhaseGrowsWithFrequency,
+                    format!("phase error grows with frequency (correlation {c:.2})"),
+                    delay(b, cmp),
+                ));
+            }
+        }
+    }
+    let moved = resonance_shift(cmp);
+    let corr_tension = r.corr_mean_tension.filter(|c| c.abs() > 0.7);
+    if corr_tension.is_some() || moved.is_some() {
+        let mut ev = Vec::new();
+        if let Some(c) = corr_tension {
+            ev.push(format!(
+                "error {} with mean tension (correlation {c:.2})",
+                if c > 0.0 { "grows" } else { "falls" }
+            ));
+        }
+        if let Some((t0, t1, d)) = moved {
+            ev.push(format!(
+                "the measured resonance moves {:.1}% {} than the model's between {t0:.0} and {t1:.0} N",
+                100.0 * d.abs(),
+                if d > 0.0 { "further up" } else { "less far up" }
+            ));
+        }
+        out.push(b.signature(
+            SignatureKind::TensionDependence,
+            ev.join(", "),
+            tension_stiffness(b, cmp),
+        ));
+    }
+    // The residual follows the velocity's sign itself, or the output's response to a
+    // torque of that sign (a dry torque's effect near the resonance is in phase with
+    // the angle, not with the velocity: there the first test misses it).
+    let friction = dry_friction(b);
+    let corr_response = friction.as_ref().map_or(0.0, |f| f.1);
+    if r.corr_velocity_sign.abs() > 0.2 || corr_response.abs() > 0.3 {
+        out.push(b.signature(
+            SignatureKind::VelocitySign,
+            format!(
+                "residual follows the sign of the velocity ({:.2}; {:.2} with the output's response to a torque of that sign)",
+                r.corr_velocity_sign, corr_response
+            ),
+            friction.map(|f| f.0),
+        ));
+    }
+    if r.harmonic_2f > 0.02 || r.harmonic_3f > 0.02 {
+        out.push(b.signature(
+            SignatureKind::Harmonics,
+            format!(
+                "harmonics in the residual (2f: {:.1}%, 3f: {:.1}%)",
+                100.0 * r.harmonic_2f,
+                100.0 * r.harmonic_3f
+            ),
+            Ok(harmonics(b)),
+        ));
+    }
+    if r.corr_time.abs() > 0.3 {
+        out.push(b.signature(
+            SignatureKind::Drift,
+            format!("drift over time (correlation {:.2})", r.corr_time),
+            Ok(drift(b)),
+        ));
+    }
+    if let Some((lo, hi)) = amplitude_contrast(cmp) {
+        out.push(b.signature(
+            SignatureKind::AmplitudeDependence,
+            format!(
+                "the error depends on the amplitude (NRMSE {:.3} at {:.3} rad vs {:.3} at {:.3} rad, {:.0} N; noise floors {:.3} and {:.3})",
+                lo.nrmse,
+                lo.amplitude_rad.unwrap_or(0.0),
+                hi.nrmse,
+                hi.amplitude_rad.unwrap_or(0.0),
+                lo.mean_tension_n.unwrap_or(0.0),
+                lo.noise_floor_nrmse,
+                hi.noise_floor_nrmse
+            ),
+            amplitude_damping(b, cmp),
+        ));
+    }
+    out
+}
+
+/// The measured resonance's move between the lowest and highest mean tension against
+/// the model's, `ln(measured ratio) - ln(model ratio)`, when larger than 3%: a stiffness
+/// that depends on the tension (the per-run error need not follow the tension: a fitted
+/// global stiffness misses both ends).
+fn resonance_shift(cmp: &Comparison) -> Option<(f64, f64, f64)> {
+    let mut res: Vec<(f64, f64, f64)> = cmp
+        .resonance
+        .iter()
+        .filter_map(|r| Some((r.mean_tension_n, r.measured_hz?, r.model_hz?)))
+        .collect();
+    res.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (lo, hi) = (res.first()?, res.last()?);
+    let moved = (hi.1 / lo.1).ln() - (hi.2 / lo.2).ln();
+    (hi.0 > lo.0 && moved.abs() > 0.03).then_some((lo.0, hi.0, moved))
+}
+
+/// Two runs at one mean tension (within 1%) and different amplitudes whose excess
+/// errors above their noise floors, `sqrt(NRMSE^2 - floor^2)`, differ by more than a
+/// factor 2 (`|ln ratio| > 0.7`), the one with the larger excess beyond the floor
+/// margin: the pair of the largest contrast, smaller amplitude first. (The NRMSE itself
+/// is no measure here: the noise alone makes it grow as the amplitude falls.)
+fn amplitude_contrast(cmp: &Comparison) -> Option<(&RunError, &RunError)> {
+    let excess = |x: &RunError| {
+        (x.nrmse.powi(2) - x.noise_floor_nrmse.powi(2))
+            .max(0.0)
+            .sqrt()
+    };
+    let mut best: Option<(f64, &RunError, &RunError)> = None;
+    for lo in &cmp.runs {
+        for hi in &cmp.runs {
+            let (Some(al), Some(ah), Some(tl), Some(th)) = (
+                lo.amplitude_rad,
+                hi.amplitude_rad,
+                lo.mean_tension_n,
+                hi.mean_tension_n,
+            ) else {
+                continue;
+            };
+            if ah <= al || (th - tl).abs() > 0.01 * tl.abs().max(th.abs()) {
+                continue;
+            }
+            let worse = if excess(lo) >= excess(hi) { lo } else { hi };
+            let contrast = (excess(hi).max(1e-12) / excess(lo).max(1e-12)).ln().abs();
+            if contrast > 0.7
+                && worse.nrmse > FLOOR_MARGIN * worse.noise_floor_nrmse
+                && best.is_none_or(|b| contrast > b.0)
+            {
+                best = Some((contrast, lo, hi));
+            }
+        }
+    }
+    best.map(|(_, lo, hi)| (lo, hi))
+}
+
+/// `y` shifted later by `tau` (earlier for `tau < 0`) with the registry's sensor delay.
+fn shifted(time_s: &[f64], y: &[f64], tau: f64) -> Vec<f64> {
+    let mut v = y.to_vec();
+    let d = Delay {
+        channel: "output_angle_rad",
+        delay_s: tau.abs(),
+    };
+    if tau >= 0.0 {
+        d.apply(time_s, &mut v);
+    } else {
+        // An advance is a delay of the time-reversed series.
+        let t: Vec<f64> = time_s.iter().rev().map(|t| -t).collect();
+        v.reverse();
+        d.apply(&t, &mut v);
+        v.reverse();
+    }
+    v
+}
+
+/// A pure delay of the output (the registry's `sensor_delay`, [`Delay`]): started from
+/// least squares on the per-frequency phase errors (`360 f tau` degrees: the model
+/// leads the data by it), fitted with the baseline's free parameters (a delay the
+/// baseline could not have pulled its stiffness down to mimic part of), the model's
+/// output shifted by `tau` for the share.
+fn delay(b: &Base<'_, '_>, cmp: &Comparison) -> Result<Term, IdentError> {
+    let (sfp, sff) = cmp.frequency.iter().fold((0.0, 0.0), |(a, c), x| {
+        (
+            a + x.frequency_hz * x.phase_error_deg,
+            c + x.frequency_hz.powi(2),
+        )
+    });
+    let tau0 = sfp / (360.0 * sff.max(f64::MIN_POSITIVE));
+    let response = |x: &[f64], f: f64| Complex64::from_polar(1.0, -TAU * f * x[0]);
+    let output = |x: &[f64], t: &[f64], y: &[f64]| shifted(t, y, x[0]);
+    let term = SweepTerm {
+        specs: vec![ParamSpec {
+            name: "delay_s".into(),
+            unit: "s".into(),
+            initial: tau0.clamp(-0.1, 0.1),
+            lower: -0.2,
+            upper: 0.2,
+            log_scale: false,
+        }],
+        neutral: vec![0.0],
+        refit_base: true,
+        on_plant: &|_, _, _| {},
+        sensor: Some(SensorTerm {
+            response: &response,
+            output: &output,
+        }),
+    };
+    let (x, ssr_after) = fit_sweep_term(b, cmp, &term)?;
+    Ok(Term {
+        term: "a delay of the output tau".into(),
+        note: format!(
+            "{}the phase errors alone give {}; the baseline's parameters refitted with it",
+            if x[0] < 0.0 {
+                "negative: an advance, the model lags the data; "
+            } else {
+                ""
+            },
+            quantity(tau0, "s")
+        ),
+        size: x[0],
+        unit: "s",
+        equivalent: None,
+        ssr_after,
+    })
+}
+
+/// The rig's dimensions from a sweep dataset: `(r1, r2, L, I, C)`.
+fn rig_of(b: &Base<'_, '_>, p: &PlantParams) -> Option<(f64, f64, f64, f64, f64)> {
+    let DatasetKind::SineSweep(sw) = &b.prep.ds.kind else {
+        return None;
+    };
+    let rig = &sw.rig;
+    Some((
+        rig.input_radius_m,
+        rig.output_radius_m,
+        rig.rope_length_m,
+        rig.output_inertia_kg_m2,
+        p.output_damping_n_m_s.unwrap_or(rig.output_damping_n_m_s),
+    ))
+}
+
+/// Dry friction. On a sweep: a torque `-F sign(w)` at the output shaft, passed through
+/// the rig's small-signal dynamics from a torque at the shaft to its angle,
+/// `G = (1 - (r2/r1) H) / (-I w^2 + i C w)` (eq. 9 with the ropes' complex stiffness
+/// eliminated through the small-signal response `H`), at every odd harmonic of each
+/// step's square wave `sign(w)` (its phase: the model's velocity); `F` by least squares
+/// on the residual. The angle offset it leaves at low frequency is `F / k_t`, with the
+/// ropes' torsional stiffness `k_t = 2 r2^2 k1 / L` (the model's `k1`). Other kinds:
+/// `-a sign(rate)` of the channel. Also returns the correlation of the residual with
+/// the term's regressor.
+fn dry_friction(b: &Base<'_, '_>) -> Result<(Term, f64), IdentError> {
+    let prep = b.prep;
+    if prep.kind != DataKind::SineSweep {
+        // regression on the sign of the model's rate
+        let mut srs = 0.0;
+        let mut sss = 0.0;
+        for (run, y) in prep.runs.iter().zip(b.sims) {
+            for &i in &run.idx {
+                let (lo, hi) = (i.saturating_sub(1), (i + 1).min(y.len() - 1));
+                let s = metrics::signum_series(&[y[hi] - y[lo]])[0];
+                srs += (y[i] - run.measured[i]) * s;
+                sss += s * s;
+            }
+        }
+        let a = srs / sss.max(f64::MIN_POSITIVE);
+        let corr = srs / (b.ssr * sss).sqrt().max(f64::MIN_POSITIVE);
+        return Ok((
+            Term {
+                term: "a dry-friction term -a sign(rate), a".into(),
+                note: "the sign of the model's rate".into(),
+                size: a,
+                unit: "N",
+                equivalent: None,
+                ssr_after: b.ssr - a * srs,
+            },
+            corr,
+        ));
+    }
+    let responses: Vec<Vec<Vec<f64>>> = (0..prep.runs.len())
+        .into_par_iter()
+        .map(|r| friction_response(b, r))
+        .collect::<Result<_, _>>()?;
+    let mut srg = 0.0;
+    let mut sgg = 0.0;
+    for (r, steps) in responses.iter().enumerate() {
+        let run = &prep.runs[r];
+        for (&(_, a, _), g) in run.segments.iter().zip(steps) {
+            for (k, gk) in g.iter().enumerate() {
+                srg += (b.sims[r][a + k] - run.measured[a + k]) * gk;
+                sgg += gk * gk;
+            }
+        }
+    }
+    let torque = srg / sgg.max(f64::MIN_POSITIVE);
+    let p = b.params(0)?;
+    let (_, r2, l, _, _) = rig_of(b, &p).unwrap_or((1.0, 1.0, 1.0, 1.0, 0.0));
+    let k_t = 2.0 * r2 * r2 * p.law.k1_n / l;
+    let corr = srg / (b.ssr * sgg).sqrt().max(f64::MIN_POSITIVE);
+    Ok((Term {
+        term: "a dry torque at the output shaft F".into(),
+        note: format!(
+            "{}an estimate: the torque's first-order effect through the rig's small-signal dynamics",
+            if torque < 0.0 {
+                "negative, so not friction; "
+            } else {
+                ""
+            }
+        ),
+        size: torque,
+        unit: "N*m",
+        equivalent: Some(Equivalent {
+            what: "its angle offset at low frequency F / k_t",
+            value: torque / k_t,
+            unit: "rad",
+        }),
+        ssr_after: b.ssr - torque * srg,
+    }, corr))
+}
+
+/// The output angle's response to a unit dry torque `-sign(w)` at the shaft over every
+/// analysis window of run `r` (the velocity's phase from the model's fundamental).
+fn friction_response(b: &Base<'_, '_>, r: usize) -> Result<Vec<Vec<f64>>, IdentError> {
+    let prep = b.prep;
+    let run = &prep.runs[r];
+    let p = b.params(r)?;
+    let (r1, r2, _, inertia, c) = rig_of(b, &p).unwrap_or((1.0, 1.0, 1.0, 1.0, 0.0));
+    let nyquist = 0.5 / run.dt_s;
+    let y = &b.sims[r];
+    run.segments
+        .iter()
+        .map(|&(f, a, e)| {
+            let psi = dft(&y[a..e], run.dt_s, f).arg() + 0.5 * PI;
+            // odd harmonics of the square wave: (4/pi) sum sin(k x) / k
+            let mut harm = Vec::new();
+            let mut k = 1;
+            while (k as f64) * f < nyquist && k <= 25 {
+                let fk = k as f64 * f;
+                let w = TAU * fk;
+                let h =
+                    prep.plant
+                        .small_signal_response(&p, r, fk)
+                        .ok_or(IdentError::NotASweep {
+                            kind: prep.ds.kind.name(),
+                        })?;
+                let g = (1.0 - (r2 / r1) * h) / Complex64::new(-inertia * w * w, c * w);
+                harm.push((k as f64, g));
+                k += 2;
+            }
+            Ok((0..e - a)
+                .map(|i| {
+                    let x = TAU * f * i as f64 * run.dt_s + psi;
+                    4.0 / PI
+                        * harm
+                            .iter()
+                            .map(|(k, g)| g.norm() / k * (k * x + g.arg()).sin())
+                            .sum::<f64>()
+                })
+                .collect())
+        })
+        .collect()
+}
+
+/// The residual's 2f and 3f components of every frequency step (single-bin DFT over
+/// the step's whole cycles), removed from it.
+fn harmonics(b: &Base<'_, '_>) -> Term {
+    let prep = b.prep;
+    let mut ssr_after = 0.0;
+    let mut largest = (0.0, 0usize, 0.0, 2usize);
+    let mut energy = [0.0; 2];
+    for (r, (run, y)) in prep.runs.iter().zip(b.sims).enumerate() {
+        let mut covered = vec![false; run.measured.len()];
+        for &(f, a, e) in &run.segments {
+            let mut res: Vec<f64> = (a..e).map(|i| y[i] - run.measured[i]).collect();
+            for (j, m) in [2usize, 3].into_iter().enumerate() {
+                let fm = m as f64 * f;
+                if fm >= 0.5 / run.dt_s {
+                    continue;
+                }
+                let c = dft(&res, run.dt_s, fm);
+                let before: f64 = res.iter().map(|v| v * v).sum();
+                for (i, v) in res.iter_mut().enumerate() {
+                    let t = i as f64 * run.dt_s;
+                    *v -= c.norm() * (TAU * fm * t + c.arg()).sin();
+                }
+                energy[j] += before - res.iter().map(|v| v * v).sum::<f64>();
+                if c.norm() > largest.0 {
+                    largest = (c.norm(), r, f, m);
+                }
+            }
+            ssr_after += res.iter().map(|v| v * v).sum::<f64>();
+            covered[a..e].iter_mut().for_each(|c| *c = true);
+        }
+        // analysed samples outside the frequency steps (none for a sweep) stay as they are
+        ssr_after += run
+            .idx
+            .iter()
+            .filter(|&&i| !covered[i])
+            .map(|&i| (y[i] - run.measured[i]).powi(2))
+            .sum::<f64>();
+    }
+    let (amp, r, f, m) = largest;
+    let odd = energy[1] >= energy[0];
+    Term {
+        term: format!(
+            "{}: the residual's 2f and 3f components of every step, the largest",
+            if odd {
+                "a symmetric non-linear stiffness (odd harmonics: stiffening, slack)"
+            } else {
+                "an asymmetric non-linearity (even harmonics)"
+            }
+        ),
+        note: format!(
+            "at {m}f of {:.2} Hz in {}",
+            f,
+            prep.runs.get(r).map_or("-", |x| x.name.as_str())
+        ),
+        size: amp,
+        unit: "rad",
+        equivalent: None,
+        ssr_after,
+    }
+}
+
+/// A term linear in time: each run's offset and a common slope, by least squares.
+fn drift(b: &Base<'_, '_>) -> Term {
+    let prep = b.prep;
+    let stats: Vec<(f64, f64)> = prep
+        .runs
+        .iter()
+        .zip(b.sims)
+        .map(|(run, y)| {
+            let n = run.idx.len().max(1) as f64;
+            let t = run.idx.iter().map(|&i| run.time_s[i]).sum::<f64>() / n;
+            let e = run.idx.iter().map(|&i| y[i] - run.measured[i]).sum::<f64>() / n;
+            (t, e)
+        })
+        .collect();
+    let (mut ste, mut stt) = (0.0, 0.0);
+    for ((run, y), (tm, em)) in prep.runs.iter().zip(b.sims).zip(&stats) {
+        for &i in &run.idx {
+            let dt = run.time_s[i] - tm;
+            ste += dt * (y[i] - run.measured[i] - em);
+            stt += dt * dt;
+        }
+    }
+    let slope = ste / stt.max(f64::MIN_POSITIVE);
+    let ssr_after = prep
+        .runs
+        .iter()
+        .zip(b.sims)
+        .zip(&stats)
+        .map(|((run, y), (tm, em))| {
+            run.idx
+                .iter()
+                .map(|&i| (y[i] - run.measured[i] - em - slope * (run.time_s[i] - tm)).powi(2))
+                .sum::<f64>()
+        })
+        .sum();
+    Term {
+        term: "a term linear in time, slope".into(),
+        note: "with each run's offset".into(),
+        size: slope,
+        unit: if prep.kind == DataKind::SineSweep {
+            "rad/s"
+        } else {
+            "N/s"
+        },
+        equivalent: None,
+        ssr_after,
+    }
+}
+
+/// A stiffness per run: `k1` scaled per run (fitted on the analytic response, then on
+/// the simulation); size: the slope of `ln k1` against the mean tension
+/// (`nonlinear_stiffness`'s `b` to first order: its tangent is `k1 (1 + b f)`).
+fn tension_stiffness(b: &Base<'_, '_>, cmp: &Comparison) -> Result<Term, IdentError> {
+    let runs = &b.prep.runs;
+    let term = SweepTerm {
+        specs: per_run_specs(runs.len(), "k1_per_run", "1", 1.0, (0.3, 3.0)),
+        neutral: vec![1.0; runs.len()],
+        refit_base: false,
+        on_plant: &|x, r, p| p.law.k1_n *= x[r],
+        sensor: None,
+    };
+    let (scales, ssr_after) = fit_sweep_term(b, cmp, &term)?;
+    let pts: Vec<(f64, f64)> = runs
+        .iter()
+        .zip(&scales)
+        .map(|(r, s)| (r.mean_tension_n.unwrap_or(0.0), s.ln()))
+        .collect();
+    Ok(Term {
+        term: "a stiffness per run, k1 rising with the mean tension by d ln k1 / dT".into(),
+        note: per_run_note(b, "k1 per run", &scales, |r, s| {
+            format!("x{s:.3} at {:.0} N", r.mean_tension_n.unwrap_or(0.0))
+        }),
+        size: slope(&pts),
+        unit: "1/N",
+        equivalent: None,
+        ssr_after,
+    })
+}
+
+/// `"{what}: v0, v1, ..."`, each run's value written by `one`.
+fn per_run_note(
+    b: &Base<'_, '_>,
+    what: &str,
+    values: &[f64],
+    one: impl Fn(&RunData, f64) -> String,
+) -> String {
+    let listed: Vec<String> = b
+        .prep
+        .runs
+        .iter()
+        .zip(values)
+        .map(|(r, &v)| one(r, v))
+        .collect();
+    format!("{what}: {}", listed.join(", "))
+}
+
+/// One fitted parameter per run, on a log scale.
+fn per_run_specs(
+    n: usize,
+    name: &str,
+    unit: &str,
+    initial: f64,
+    (lower, upper): (f64, f64),
+) -> Vec<ParamSpec> {
+    (0..n)
+        .map(|r| ParamSpec {
+            name: format!("{name}[{r}]"),
+            unit: unit.into(),
+            initial,
+            lower,
+            upper,
+            log_scale: true,
+        })
+        .collect()
+}
+
+/// Least-squares slope of `y` on `x` (0 without spread in `x`).
+fn slope(pts: &[(f64, f64)]) -> f64 {
+    let n = pts.len().max(1) as f64;
+    let mx = pts.iter().map(|p| p.0).sum::<f64>() / n;
+    let my = pts.iter().map(|p| p.1).sum::<f64>() / n;
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    if sxx > 0.0 {
+        sxy / sxx
+    } else {
+        0.0
+    }
+}
+
+/// Amplitude-dependent damping: an output damping per run, fitted with the baseline's
+/// free parameters (on the analytic response, then on the simulation); size: the dry
+/// torque `F` that the describing function gives, `C_r = C_v + 4 F / (pi V_r)` by least
+/// squares over the runs, `V_r` the largest measured output velocity amplitude of run
+/// `r` (at its resonance, where the damping acts).
+fn amplitude_damping(b: &Base<'_, '_>, cmp: &Comparison) -> Result<Term, IdentError> {
+    let prep = b.prep;
+    let c0 = rig_of(b, &b.params(0)?).map_or(0.05, |x| x.4).max(1e-4);
+    let term = SweepTerm {
+        specs: per_run_specs(
+            prep.runs.len(),
+            "damping_per_run",
+            "N*m*s",
+            c0,
+            (0.2 * c0, 50.0 * c0),
+        ),
+        neutral: vec![c0; prep.runs.len()],
+        refit_base: true,
+        on_plant: &|x, r, p| p.output_damping_n_m_s = Some(x[r]),
+        sensor: None,
+    };
+    let (damping, ssr_after) = fit_sweep_term(b, cmp, &term)?;
+    let pts: Vec<(f64, f64)> = prep
+        .runs
+        .iter()
+        .zip(&damping)
+        .filter_map(|(run, &c)| {
+            let v = run
+                .segments
+                .iter()
+                .map(|&(f, a, e)| TAU * f * dft(&run.measured[a..e], run.dt_s, f).norm())
+                .fold(0.0, f64::max);
+            (v > 0.0).then_some((4.0 / (PI * v), c))
+        })
+        .collect();
+    Ok(Term {
+        term: "amplitude-dependent damping, a damping per run read as dry friction by the describing function C = C_v + 4 F / (pi V), F".into(),
+        note: per_run_note(b, "output damping per run, N*m*s", &damping, |r, c| {
+            format!("{c:.4} in {}", r.name)
+        }),
+        size: slope(&pts),
+        unit: "N*m",
+        equivalent: None,
+        ssr_after,
+    })
+}
