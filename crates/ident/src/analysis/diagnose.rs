@@ -6,10 +6,10 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::{
-    compare, fit_model, screen_model, Comparison, Fitted, Prepared, RunError, RunResonance, Where,
+    compare, describe, fit_model, screen_model, signatures, Comparison, Fitted, Prepared,
+    RunResonance, Signature, Where,
 };
 use crate::error::IdentError;
-use crate::metrics;
 use crate::model::Model;
 
 /// One candidate effect of a diagnosis.
@@ -68,6 +68,10 @@ pub struct Diagnosis {
     pub comparison: Comparison,
     /// NRMSE of the model with the winning effect (null when none).
     pub nrmse_after: Option<f64>,
+    /// When no effect is decisive and the baseline misses the data: the residual's
+    /// signatures, each with the simplest term that would produce it, its size and the
+    /// share of the excess error it removes (empty otherwise).
+    pub signatures: Vec<Signature>,
 }
 
 /// Fraction of the baseline's excess squared error a decisive winner must explain.
@@ -199,6 +203,11 @@ pub fn diagnose(
         winner = cands[0].1.take();
     }
     let missing = decisive.then(|| cands[0].0.effect.clone());
+    let sigs = if missing.is_none() && !at_floor {
+        signatures(prep, &base.model, &base.sims, &cmp)
+    } else {
+        Vec::new()
+    };
     let explanation = explain(
         prep,
         &base,
@@ -206,6 +215,7 @@ pub fn diagnose(
         &cands.iter().map(|c| c.0.clone()).collect::<Vec<_>>(),
         missing.as_deref(),
         at_floor,
+        &sigs,
     );
     let diag = Diagnosis {
         dataset: prep.ds.title.clone(),
@@ -231,6 +241,7 @@ pub fn diagnose(
         nrmse_after: winner.as_ref().map(|w: &Fitted| w.nrmse),
         explanation,
         comparison: cmp,
+        signatures: sigs,
     };
     Ok((diag, base, winner))
 }
@@ -242,6 +253,7 @@ fn explain(
     cands: &[Candidate],
     missing: Option<&str>,
     at_floor: bool,
+    sigs: &[Signature],
 ) -> String {
     let mut s = String::new();
     let ratio = base.nrmse / base.noise_floor.max(f64::MIN_POSITIVE);
@@ -359,74 +371,8 @@ fn explain(
             } else {
                 s.push_str("No registered effect applies to this kind of data. ");
             }
-            s.push_str(&signature(cmp));
+            s.push_str(&describe(sigs));
         }
     }
     s
-}
-
-/// A description of the residual's signature.
-fn signature(cmp: &Comparison) -> String {
-    let mut parts = Vec::new();
-    let r = &cmp.residual;
-    if cmp.frequency.len() >= 4 {
-        // phase error vs frequency: proportional growth means a pure delay
-        let (f, p): (Vec<f64>, Vec<f64>) = cmp
-            .frequency
-            .iter()
-            .map(|x| (x.frequency_hz, x.phase_error_deg))
-            .unzip();
-        if let Ok(c) = metrics::pearson(&f, &p) {
-            if c.abs() > 0.8 {
-                parts.push(format!("phase error grows with frequency (correlation {c:.2}): a delay or missing dissipation"));
-            }
-        }
-    }
-    if let Some(c) = r.corr_mean_tension {
-        if c.abs() > 0.7 {
-            parts.push(format!(
-                "error {} with mean tension (correlation {c:.2})",
-                if c > 0.0 { "grows" } else { "falls" }
-            ));
-        }
-    }
-    if r.corr_velocity_sign.abs() > 0.2 {
-        parts.push(format!(
-            "residual follows the sign of the velocity ({:.2}): friction",
-            r.corr_velocity_sign
-        ));
-    }
-    if r.harmonic_2f > 0.02 || r.harmonic_3f > 0.02 {
-        parts.push(format!(
-            "harmonics in the residual (2f: {:.1}%, 3f: {:.1}%): a non-linearity",
-            100.0 * r.harmonic_2f,
-            100.0 * r.harmonic_3f
-        ));
-    }
-    if r.corr_time.abs() > 0.3 {
-        parts.push(format!("drift over time (correlation {:.2})", r.corr_time));
-    }
-    let amp: Vec<&RunError> = cmp
-        .runs
-        .iter()
-        .filter(|x| x.amplitude_rad.is_some())
-        .collect();
-    if amp.len() >= 2 {
-        let mut by = amp.clone();
-        by.sort_by(|a, b| {
-            a.amplitude_rad
-                .unwrap_or(0.0)
-                .total_cmp(&b.amplitude_rad.unwrap_or(0.0))
-        });
-        let (lo, hi) = (by[0], by[by.len() - 1]);
-        if hi.amplitude_rad > lo.amplitude_rad && (hi.nrmse / lo.nrmse.max(1e-12)).ln().abs() > 0.7
-        {
-            parts.push(format!("the error depends on the amplitude (NRMSE {:.3} at {:.3} rad vs {:.3} at {:.3} rad)", lo.nrmse, lo.amplitude_rad.unwrap_or(0.0), hi.nrmse, hi.amplitude_rad.unwrap_or(0.0)));
-        }
-    }
-    if parts.is_empty() {
-        "Residual signature: no clear pattern (white-ish, no harmonics, no drift).".into()
-    } else {
-        format!("Residual signature: {}.", parts.join("; "))
-    }
 }
