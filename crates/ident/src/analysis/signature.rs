@@ -483,17 +483,25 @@ pub fn signatures(
             tension_stiffness(b, cmp),
         ));
     }
-    // The residual follows the velocity's sign itself, or the output's response to a
-    // torque of that sign (a dry torque's effect near the resonance is in phase with
-    // the angle, not with the velocity: there the first test misses it).
+    // The residual follows the velocity's sign itself, or (sweeps) the output's
+    // response to a torque of that sign (a dry torque's effect near the resonance is
+    // in phase with the angle, not with the velocity: there the first test misses it).
     let friction = dry_friction(b);
     let corr_response = friction.as_ref().map_or(0.0, |f| f.1);
-    if r.corr_velocity_sign.abs() > 0.2 || corr_response.abs() > 0.3 {
+    let follows_response = prep.kind == DataKind::SineSweep && corr_response.abs() > 0.3;
+    if r.corr_velocity_sign.abs() > 0.2 || follows_response {
         out.push(b.signature(
             SignatureKind::VelocitySign,
             format!(
-                "residual follows the sign of the velocity ({:.2}; {:.2} with the output's response to a torque of that sign)",
-                r.corr_velocity_sign, corr_response
+                "residual follows the sign of the velocity ({:.2}{})",
+                r.corr_velocity_sign,
+                if prep.kind == DataKind::SineSweep {
+                    format!(
+                        "; {corr_response:.2} with the output's response to a torque of that sign"
+                    )
+                } else {
+                    String::new()
+                }
             ),
             friction.map(|f| f.0),
         ));
