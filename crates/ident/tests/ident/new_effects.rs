@@ -69,6 +69,8 @@ fn hide_and_diagnose(
         d.missing_effect,
         d.explanation
     );
+    // A decisive verdict needs no signature.
+    assert!(d.missing_effect.is_none() || d.signatures.is_empty());
     let params = d
         .candidates
         .iter()

@@ -4,8 +4,9 @@
 //! comes with the size of the simplest term that produces it and the share of the
 //! excess error that term removes; on control data no signature claims a share.
 
+use longreach_drive::effects;
 use longreach_ident::analysis::{
-    compare, describe, fit_model, signatures, Prepared, Signature, SignatureKind,
+    compare, describe, diagnose, fit_model, signatures, Prepared, Signature, SignatureKind,
 };
 use longreach_ident::model::Model;
 use longreach_ident::Dataset;
@@ -143,4 +144,29 @@ fn control_data_claim_no_share_and_serialise() {
             }
         }
     }
+}
+
+#[test]
+fn diagnose_reports_the_signatures_when_no_effect_is_decisive() {
+    // A model that rules the delay out (the encoder's delay known to be 10 us): no
+    // candidate can name it, and the signature says what to add.
+    let ds = hidden_sweep("sensor_delay", &[0.012], 11);
+    let mut model = base().with_effect(effects::find("sensor_delay").unwrap());
+    model.effects[0].params[0].value = 1e-5;
+    model.effects[0].params[0].fit = false;
+    let prep = Prepared::new(&ds).unwrap();
+    let (d, _, _) = diagnose(&prep, &model).unwrap();
+    eprintln!("{}", d.explanation);
+    assert_eq!(d.missing_effect, None);
+    let s = find(&d.signatures, SignatureKind::PhaseGrowsWithFrequency);
+    assert!(
+        (s.size / 0.012 - 1.0).abs() < 0.05 && s.share_removed > 0.9,
+        "{s:?}"
+    );
+    assert!(d
+        .explanation
+        .contains("Residual signature: phase error grows with frequency"));
+    assert!(d
+        .explanation
+        .contains("a delay of the output tau = 12.0 ms would remove"));
 }
