@@ -299,9 +299,14 @@ impl FitResult {
         }
         let (shift, se) = (self.interval_shift[i], self.std_errors[i]);
         if shift.abs() > 0.5 * se {
+            let centre = self.values[i] + shift;
+            let centre = if (1e-3..1e5).contains(&centre.abs()) {
+                format!("{centre:.6}")
+            } else {
+                format!("{centre:.5e}")
+            };
             notes.push(format!(
-                "centred at {:.6e} (exact model, {:+.1} std errors)",
-                self.values[i] + shift,
+                "centred at {centre} (exact model, {:+.1} std errors)",
                 shift / se
             ));
         }

@@ -265,3 +265,33 @@ fn sweep_intervals_correct_the_time_step_and_hold_the_truth() {
     }
     assert!(z.iter().all(|z| z.abs() < 3.0), "{z:?}");
 }
+
+#[test]
+fn model_files_carry_the_intervals_and_read_back() {
+    let start = Model::baseline(&placeholder("dyneema2")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("ds");
+    synth::relaxation(&start, &RelaxationOptions::paper("dyneema2", 5))
+        .unwrap()
+        .write(&path, "intervals")
+        .unwrap();
+    let ds = Dataset::load(&path).unwrap();
+    let prep = Prepared::new(&ds).unwrap();
+    let fitted = fit_model(&prep, &start).unwrap();
+    let r = fitted.fit.as_ref().unwrap();
+    let text = fitted.model.to_toml_with_fit("fitted", Some(r));
+    assert_eq!(text.matches("interval_95 = [").count(), 4, "{text}");
+    let (lo, hi) = r.interval_95[0];
+    assert!(
+        text.contains(&format!("interval_95 = [{lo:e}, {hi:e}]")),
+        "{text}"
+    );
+    // the reader accepts the key and ignores it
+    let back = Model::from_toml(&text, "m.toml", &ds).unwrap();
+    let sorted = |m: &Model| {
+        let mut v = m.named_values();
+        v.sort_by(|a, b| a.0.cmp(&b.0));
+        v
+    };
+    assert_eq!(sorted(&back), sorted(&fitted.model));
+}
