@@ -10,6 +10,7 @@ use comfy_table::Table;
 
 use longreach_drive::effects;
 use longreach_ident::analysis::{self, Comparison, Prepared};
+use longreach_ident::fitting::Clipped;
 use longreach_ident::model::{Model, ParamDef};
 use longreach_ident::{synth, Dataset};
 use longreach_plot::{write_png, BodeCurve, Figure, Panel, Series, Style};
@@ -397,7 +398,7 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
                         fmt_interval(lo, hi),
                         c.interval_clipped
                             .get(name)
-                            .map_or(String::new(), |b| format!("clipped at the {b} bound")),
+                            .map_or(String::new(), |b| Clipped::note_for(b)),
                     ),
                     None if c.error.is_some() => ("-".into(), "fit failed".into()),
                     None => ("-".into(), "known".into()),
@@ -596,7 +597,7 @@ fn write_report(
             for (name, [lo, hi]) in intervals {
                 let flag = clipped
                     .get(name)
-                    .map_or(String::new(), |c| format!(" (clipped at the {c} bound)"));
+                    .map_or(String::new(), |c| format!(" ({})", Clipped::note_for(c)));
                 md.push_str(&format!(
                     "| {model} | {name} | {} | {}{flag} |\n",
                     params.get(name).map_or("-".into(), |v| fmt(*v)),

@@ -83,8 +83,14 @@
 //! often than 95% on one side.
 //!
 //! A log-scale parameter's interval is symmetric in `ln x` (standard error of `ln x`:
-//! `se / x`). An interval that reaches past a bound is clipped there and flagged
-//! ([`Clipped`]); a parameter whose standard error is infinite gets its bounds.
+//! `se / x`). An interval that reaches past a bound is clipped there, flagged
+//! ([`Clipped`]) and made to reach the fitted value (a parameter held at its bound whose
+//! optimum lies beyond it gets the interval from the bound to the fitted value at
+//! least). A parameter the data do not determine (its column of `J` zero, or explained
+//! by the others' to `1 - R^2 < 1e-10`: pivoted Cholesky of `A` scaled to unit
+//! diagonal) gets an infinite standard error and its bounds; the others are estimated
+//! without it, and [`FitResult::interval_method`] names it. The columns of `J` are
+//! scaled to unit norm for all of this (sensitivities span decades).
 //!
 //! # Determinism
 //!
@@ -292,10 +298,7 @@ impl FitResult {
     pub fn interval_note(&self, i: usize) -> String {
         let mut notes = Vec::new();
         if let Some(c) = self.interval_clipped.get(i).and_then(|c| c.as_str()) {
-            notes.push(match c {
-                "both" => "not identifiable: the bounds".to_string(),
-                side => format!("clipped at the {side} bound"),
-            });
+            notes.push(Clipped::note_for(c));
         }
         let (shift, se) = (self.interval_shift[i], self.std_errors[i]);
         if shift.abs() > 0.5 * se {
@@ -329,6 +332,14 @@ pub enum Clipped {
 }
 
 impl Clipped {
+    /// What a table says of an interval clipped as `name` ([`Self::as_str`]).
+    pub fn note_for(name: &str) -> String {
+        match name {
+            "both" => "not determined by these data: the interval is the bounds".into(),
+            side => format!("clipped at the {side} bound"),
+        }
+    }
+
     /// `None`, `"lower"`, `"upper"` or `"both"` (for tables and JSON).
     pub fn as_str(self) -> Option<&'static str> {
         match self {
@@ -813,6 +824,42 @@ fn t_quantile_95(df: f64) -> f64 {
     StudentsT::new(0.0, 1.0, df.max(1.0)).map_or(1.959_963_984_540_054, |t| t.inverse_cdf(0.975))
 }
 
+/// The parameters the data determine: pivoted Cholesky of `A = J^T J` scaled to unit
+/// diagonal, taking the column with the largest remaining diagonal (`1 - R^2` of that
+/// column on those taken) while it exceeds 1e-10; a zero column is never taken. In the
+/// parameters' order.
+fn identifiable(a: &na::DMatrix<f64>) -> Vec<usize> {
+    let p = a.nrows();
+    let d: Vec<f64> = (0..p).map(|j| a[(j, j)]).collect();
+    let ok: Vec<bool> = d.iter().map(|v| v.is_finite() && *v > 0.0).collect();
+    // correlation-scaled copy
+    let mut m = na::DMatrix::from_fn(p, p, |i, j| {
+        if ok[i] && ok[j] {
+            a[(i, j)] / (d[i] * d[j]).sqrt()
+        } else {
+            0.0
+        }
+    });
+    let mut taken = Vec::new();
+    while let Some((j, rest)) = (0..p)
+        .filter(|j| ok[*j] && !taken.contains(j))
+        .map(|j| (j, m[(j, j)]))
+        .max_by(|x, y| x.1.total_cmp(&y.1))
+        .filter(|(_, rest)| *rest > 1e-10)
+    {
+        // eliminate column j from the remaining ones (Schur complement)
+        let col: Vec<f64> = (0..p).map(|i| m[(i, j)]).collect();
+        for r in 0..p {
+            for c in 0..p {
+                m[(r, c)] -= col[r] * col[c] / rest;
+            }
+        }
+        taken.push(j);
+    }
+    taken.sort_unstable();
+    taken
+}
+
 /// The linearised delete-one-group jackknife covariance (module docs) of the scaled
 /// problem: `jac` n x p, residuals `r`, group of every residual. `None` with fewer than
 /// `p + 2` groups; infinite where leaving a group out leaves the estimate undetermined.
@@ -898,11 +945,26 @@ fn uncertainties(
     let ssr: f64 = r0.iter().map(|v| v * v).sum();
     // Jacobian w.r.t. relative changes x_j (1 + d_j): J_s = J diag(scale)
     let js = na::DMatrix::from_fn(n, p, |i, j| cols[j][i] * scale[j]);
-    let jtj = js.transpose() * &js;
-    let inv = na::Cholesky::new(jtj)
+    // Parameters the data do not determine (a zero column, or one the others explain)
+    // get an infinite error; the rest are estimated without them.
+    let keep = identifiable(&(js.transpose() * &js));
+    let dropped: Vec<&str> = (0..p)
+        .filter(|j| !keep.contains(j))
+        .map(|j| specs[j].name.as_str())
+        .collect();
+    let q = keep.len();
+    // the kept columns, each scaled to unit norm (a plain change of units that keeps
+    // J^T J well scaled when sensitivities span decades)
+    let mut jk = js.select_columns(&keep);
+    let norms: Vec<f64> = jk.column_iter().map(|c| c.norm()).collect();
+    for (mut c, nrm) in jk.column_iter_mut().zip(&norms) {
+        c /= *nrm;
+    }
+    let inv = na::Cholesky::new(jk.transpose() * &jk)
         .map(|c| c.inverse())
-        .filter(|m| m.iter().all(|v| v.is_finite()));
-    // The covariance of the relative changes, and the degrees of freedom of t.
+        .filter(|m| q > 0 && m.iter().all(|v| v.is_finite()));
+    // The covariance of the relative changes of the kept parameters, and the degrees
+    // of freedom of t.
     let groups = problem.error_groups();
     if let Some(g) = &groups {
         if g.len() != n {
@@ -913,19 +975,19 @@ fn uncertainties(
         }
     }
     let independent = |why: &str| {
-        let df = (n - p) as f64;
+        let df = (n - q.max(1)) as f64;
         (
             inv.as_ref().map(|m| m * (ssr / df)),
             df,
             format!(
                 "independent errors{why}, t({}) = {:.3}",
-                n - p,
+                n - q.max(1),
                 t_quantile_95(df)
             ),
         )
     };
     let (cov, df, mut method) = match (&groups, &inv) {
-        (Some(g), Some(_)) => match jackknife_covariance(&js, &r0, g) {
+        (Some(g), Some(_)) => match jackknife_covariance(&jk, &r0, g) {
             Some((c, count)) => {
                 let df = (count - 1) as f64;
                 (
@@ -942,20 +1004,24 @@ fn uncertainties(
         },
         _ => independent(""),
     };
-    let (std_errors, correlation) = match &cov {
-        Some(c) if (0..p).all(|j| c[(j, j)].is_finite() && c[(j, j)] >= 0.0) => {
-            let se: Vec<f64> = (0..p).map(|j| c[(j, j)].sqrt() * scale[j]).collect();
-            let corr = (0..p)
-                .map(|i| {
-                    (0..p)
-                        .map(|k| c[(i, k)] / (c[(i, i)] * c[(k, k)]).sqrt())
-                        .collect()
-                })
-                .collect();
-            (se, corr)
+    if !dropped.is_empty() {
+        method.push_str(&format!(
+            "; not identifiable from these data: {}",
+            dropped.join(", ")
+        ));
+    }
+    let mut std_errors = vec![f64::INFINITY; p];
+    let mut correlation = vec![vec![f64::NAN; p]; p];
+    if let Some(c) = &cov {
+        if (0..q).all(|a| c[(a, a)].is_finite() && c[(a, a)] >= 0.0) {
+            for (a, &i) in keep.iter().enumerate() {
+                std_errors[i] = c[(a, a)].sqrt() / norms[a] * scale[i];
+                for (b, &k) in keep.iter().enumerate() {
+                    correlation[i][k] = c[(a, b)] / (c[(a, a)] * c[(b, b)]).sqrt();
+                }
+            }
         }
-        _ => (vec![f64::INFINITY; p], vec![vec![f64::NAN; p]; p]),
-    };
+    }
     // Where the intervals are centred: the Gauss-Newton step to the optimum, plus the
     // Richardson estimate of the exact model's optimum when the model has a step.
     let mut shift = vec![0.0; p];
@@ -988,10 +1054,10 @@ fn uncertainties(
                 ));
             }
         }
-        let step = inv * (js.transpose() * na::DVector::from_vec(target));
-        for j in 0..p {
-            if step[j].is_finite() {
-                shift[j] = step[j] * scale[j];
+        let step = inv * (jk.transpose() * na::DVector::from_vec(target));
+        for (a, &j) in keep.iter().enumerate() {
+            if step[a].is_finite() {
+                shift[j] = step[a] / norms[a] * scale[j];
             }
         }
     }
@@ -1004,8 +1070,15 @@ fn uncertainties(
         // NaN ends count as beyond the bound
         let below = lo.is_nan() || lo <= s.lower;
         let above = hi.is_nan() || hi >= s.upper;
-        // clipped into the bounds (an interval wholly beyond a bound shrinks onto it)
-        interval_95.push((lo.max(s.lower).min(s.upper), hi.min(s.upper).max(s.lower)));
+        // Clipped into the bounds; a clipped interval also reaches the fitted value (a
+        // parameter at or near its bound whose optimum lies beyond it: the interval
+        // runs from the bound to the fitted value at least).
+        let (mut lo, mut hi) = (lo.max(s.lower).min(s.upper), hi.min(s.upper).max(s.lower));
+        if below || above {
+            lo = lo.min(x[j]);
+            hi = hi.max(x[j]);
+        }
+        interval_95.push((lo, hi));
         clipped.push(match (below, above) {
             (false, false) => Clipped::No,
             (true, false) => Clipped::Lower,
