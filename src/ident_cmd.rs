@@ -10,6 +10,7 @@ use comfy_table::Table;
 
 use longreach_drive::effects;
 use longreach_ident::analysis::{self, Comparison, Prepared};
+use longreach_ident::fitting::Clipped;
 use longreach_ident::model::{Model, ParamDef};
 use longreach_ident::{synth, Dataset};
 use longreach_plot::{write_png, BodeCurve, Figure, Panel, Series, Style};
@@ -145,30 +146,79 @@ fn fmt(x: f64) -> String {
     }
 }
 
+/// A 95% interval `[lower, upper]` with enough digits to show its width.
+fn fmt_interval(lo: f64, hi: f64) -> String {
+    if !(lo.is_finite() && hi.is_finite()) {
+        return format!("[{}, {}]", fmt(lo), fmt(hi));
+    }
+    let mag = lo.abs().max(hi.abs());
+    let width = hi - lo;
+    // significant digits: two beyond the first that differs across the interval
+    let sig = if width > 0.0 && mag > 0.0 {
+        ((mag / width).log10().ceil() as i32 + 2).clamp(3, 12)
+    } else {
+        6
+    };
+    if mag == 0.0 || (1e-3..1e5).contains(&mag) {
+        let d = (sig - 1 - mag.max(1e-300).log10().floor() as i32).max(0) as usize;
+        format!("[{lo:.d$}, {hi:.d$}]")
+    } else {
+        let d = (sig - 1) as usize;
+        format!("[{lo:.d$e}, {hi:.d$e}]")
+    }
+}
+
+/// Table rows `(name, value, interval, std error, note)` of a fit's parameters.
+fn fit_rows(r: &longreach_ident::FitResult) -> Vec<[String; 5]> {
+    (0..r.names.len())
+        .map(|i| {
+            let (lo, hi) = r.interval_95[i];
+            [
+                r.names[i].clone(),
+                fmt(r.values[i]),
+                fmt_interval(lo, hi),
+                fmt(r.std_errors[i]),
+                r.interval_note(i),
+            ]
+        })
+        .collect()
+}
+
 /// Runs `fit`.
 pub fn run_fit(a: &FitArgs) -> Result<ExitCode> {
     let (ds, model) = load(&a.data)?;
     let prep = Prepared::new(&ds).map_err(message)?;
     let f = analysis::fit_model(&prep, &model).map_err(message)?;
     let mut table = Table::new();
-    table.set_header(vec!["parameter", "value", "std error", "unit"]);
+    table.set_header(vec![
+        "parameter",
+        "value",
+        "95% interval",
+        "std error",
+        "unit",
+        "note",
+    ]);
     let mut params = BTreeMap::new();
     if let Some(r) = &f.fit {
         let specs = model.fit_specs(prep.runs.len());
-        for ((n, v), (se, s)) in r
-            .names
-            .iter()
-            .zip(&r.values)
-            .zip(r.std_errors.iter().zip(&specs))
-        {
-            table.add_row(vec![n.clone(), fmt(*v), fmt(*se), s.unit.clone()]);
+        for (i, ([n, v, iv, se, note], s)) in fit_rows(r).into_iter().zip(&specs).enumerate() {
+            table.add_row(vec![n.clone(), v, iv, se, s.unit.clone(), note]);
             params.insert(
-                n.clone(),
-                serde_json::json!({"value": v, "std_error": se, "unit": s.unit}),
+                n,
+                serde_json::json!({
+                    "value": r.values[i],
+                    "std_error": r.std_errors[i],
+                    "interval_95": r.interval_95[i],
+                    "interval_clipped": r.interval_clipped[i].as_str(),
+                    "unit": s.unit,
+                }),
             );
         }
     }
     println!("{table}");
+    if let Some(r) = &f.fit {
+        println!("95% intervals: {}", r.interval_method);
+    }
     let unit = if prep.kind == effects::DataKind::SineSweep {
         "rad"
     } else {
@@ -194,6 +244,7 @@ pub fn run_fit(a: &FitArgs) -> Result<ExitCode> {
                 "rms": rms_after,
                 "rms_unit": unit,
                 "converged": f.fit.as_ref().map(|r| r.converged),
+                "interval_method": f.fit.as_ref().map(|r| r.interval_method.clone()),
             }),
         )?;
     }
@@ -292,6 +343,21 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
         "baseline NRMSE {:.4} (noise floor {:.4})",
         d.baseline.nrmse, d.baseline.noise_floor_nrmse
     );
+    if let Some(r) = &base.fit {
+        let mut t = Table::new();
+        t.set_header(vec![
+            "baseline parameter",
+            "value",
+            "95% interval",
+            "std error",
+            "note",
+        ]);
+        for row in fit_rows(r) {
+            t.add_row(row.to_vec());
+        }
+        println!("{t}");
+        println!("95% intervals: {}", r.interval_method);
+    }
     let mut t = Table::new();
     t.set_header(vec![
         "rank",
@@ -312,6 +378,42 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
         ]);
     }
     println!("{t}");
+    if d.candidates.iter().all(|c| c.screened) {
+        if !d.candidates.is_empty() {
+            println!("candidates screened at their starting values, not fitted: no intervals");
+        }
+    } else {
+        let mut t = Table::new();
+        t.set_header(vec![
+            "candidate",
+            "parameter",
+            "value",
+            "95% interval",
+            "note",
+        ]);
+        for c in &d.candidates {
+            for (name, v) in &c.params {
+                let (interval, note) = match c.interval_95.get(name) {
+                    Some(&[lo, hi]) => (
+                        fmt_interval(lo, hi),
+                        c.interval_clipped
+                            .get(name)
+                            .map_or(String::new(), |b| Clipped::note_for(b)),
+                    ),
+                    None if c.error.is_some() => ("-".into(), "fit failed".into()),
+                    None => ("-".into(), "known".into()),
+                };
+                t.add_row(vec![
+                    c.effect.clone(),
+                    name.clone(),
+                    fmt(*v),
+                    interval,
+                    note,
+                ]);
+            }
+        }
+        println!("{t}");
+    }
     println!(
         "missing effect: {}",
         d.missing_effect.as_deref().unwrap_or("none found")
@@ -321,7 +423,7 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
         write_json(p, &d)?;
     }
     if let Some(p) = &a.write_model {
-        let m = winner.as_ref().map_or(&base.model, |w| &w.model);
+        let fitted = winner.as_ref().unwrap_or(&base);
         let comment = format!(
             "written by `longreach diagnose` for dataset {}\nbaseline NRMSE {:.5}; with {}: {}",
             ds.title,
@@ -329,7 +431,8 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
             d.missing_effect.as_deref().unwrap_or("no effect"),
             d.nrmse_after.map_or("-".into(), |x| format!("{x:.5}"))
         );
-        write_atomic(p, m.to_toml(&comment).as_bytes())?;
+        let text = fitted.model.to_toml_with_fit(&comment, fitted.fit.as_ref());
+        write_atomic(p, text.as_bytes())?;
     }
     if let Some(dir) = &a.report {
         let m = winner.as_ref().map_or(&base, |w| w);
@@ -476,6 +579,31 @@ fn write_report(
                 k.score,
                 100.0 * k.explained.clamp(0.0, 1.0)
             ));
+        }
+        md.push_str(
+            "\n### Fitted values and 95% intervals\n\n| model | parameter | value | 95% interval |\n|---|---|---|---|\n",
+        );
+        let b = &d.baseline;
+        let models = std::iter::once(("baseline", &b.params, &b.interval_95, &b.interval_clipped))
+            .chain(d.candidates.iter().map(|c| {
+                (
+                    c.effect.as_str(),
+                    &c.params,
+                    &c.interval_95,
+                    &c.interval_clipped,
+                )
+            }));
+        for (model, params, intervals, clipped) in models {
+            for (name, [lo, hi]) in intervals {
+                let flag = clipped
+                    .get(name)
+                    .map_or(String::new(), |c| format!(" ({})", Clipped::note_for(c)));
+                md.push_str(&format!(
+                    "| {model} | {name} | {} | {}{flag} |\n",
+                    params.get(name).map_or("-".into(), |v| fmt(*v)),
+                    fmt_interval(*lo, *hi)
+                ));
+            }
         }
     }
     md.push_str("\n## Pictures\n\n");

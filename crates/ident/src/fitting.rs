@@ -36,17 +36,61 @@
 //! error, e.g. the relay-pulley solve of `relay_friction` at one point near the
 //! optimum (a candidate of `diagnose` then had no score at all).
 //!
-//! # Uncertainties
+//! # Uncertainties and 95% intervals
 //!
 //! At the optimum the Jacobian `J = d r / d x` is computed again, in the parameters
 //! themselves (forward differences with step `diff_step * |x_j|`, backward at an upper
-//! bound), and
+//! bound). With `A = J^T J`, the covariance of the estimates is
 //!
-//! `Cov = sigma^2 (J^T J)^-1`, `sigma^2 = SSR / (n - p)`,
+//! * **independent errors** (the default): `Cov = sigma^2 A^-1`,
+//!   `sigma^2 = SSR / (n - p)`, the usual local (linearised) estimate for independent
+//!   residuals of equal variance; the interval uses Student's t with `n - p` degrees of
+//!   freedom;
+//! * **grouped errors** ([`Residuals::error_groups`]: the residuals fall into `G`
+//!   groups whose errors may be correlated within a group, not between groups): the
+//!   delete-one-group jackknife, linearised. Leaving group `g` out moves the estimate by
+//!   `d_g = (A - A_g)^-1 s_g` (one Gauss-Newton step; `A_g = J_g^T J_g`, score
+//!   `s_g = J_g^T r_g`), and `Cov = (G - 1)/G sum_g (d_g - d_mean)(d_g - d_mean)^T`;
+//!   the interval uses t with `G - 1` degrees of freedom. This is the cluster-robust
+//!   sandwich with the jackknife's leverage correction (CR3), which stays honest when a
+//!   few groups carry most of the information about a parameter (a sweep's frequency
+//!   steps near the resonance) and whatever the errors' structure inside a group (an
+//!   encoder's quantisation error is coherent over a frequency step and, in runs that
+//!   see the same signal, the same in every run). It needs `G >= p + 2`; with fewer
+//!   groups the independent-error estimate is used (and [`FitResult::interval_method`]
+//!   says so). A group whose removal leaves a parameter undetermined makes its error
+//!   infinite.
 //!
-//! giving `std_errors_j = sqrt(Cov_jj)` and correlations `Cov_jk / (s_j s_k)`. This is
-//! the usual local (linearised, unconstrained) estimate: it assumes independent
-//! residuals of equal variance and means little for a parameter stuck at a bound.
+//! `std_errors` and `correlation` come from that covariance. The 95% interval
+//! ([`FitResult::interval_95`]) of parameter `j` is `centre_j -/+ t se_j`, where
+//! `centre = x + shift` ([`FitResult::interval_shift`]) estimates the exact model's
+//! optimum:
+//!
+//! * the Gauss-Newton step `-A^-1 J^T r` (the distance to the optimum the optimiser
+//!   stopped short of: ~0 for a converged fit; beyond the bound for a parameter held at
+//!   its bound);
+//! * for a model whose evaluation has a step ([`Residuals::refined_residuals`]: a
+//!   simulation), the shift of the optimum to the exact model's, by Richardson
+//!   extrapolation of a second-order method: the residuals' own error is
+//!   `e = 4/3 (r(h) - r(h/2))` and the optimum moves by `A^-1 J^T e`. For sweeps at
+//!   2.5 ms this is ~30 standard errors of `k1_scale` (the trapezoidal rule's period
+//!   error, `(w h)^2 / 12` at the resonance), far larger than the noise's share.
+//!
+//! The interval is thus one for the parameter of the system the data come from, and it
+//! may exclude the fitted value (which is the optimum of the model as evaluated, the
+//! one `compare` reproduces) when the shift exceeds `t se`: a sweep's `k1_scale`. An
+//! interval widened to include the fitted value as well would hold the truth far more
+//! often than 95% on one side.
+//!
+//! A log-scale parameter's interval is symmetric in `ln x` (standard error of `ln x`:
+//! `se / x`). An interval that reaches past a bound is clipped there, flagged
+//! ([`Clipped`]) and made to reach the fitted value (a parameter held at its bound whose
+//! optimum lies beyond it gets the interval from the bound to the fitted value at
+//! least). A parameter the data do not determine (its column of `J` zero, or explained
+//! by the others' to `1 - R^2 < 1e-10`: pivoted Cholesky of `A` scaled to unit
+//! diagonal) gets an infinite standard error and its bounds; the others are estimated
+//! without it, and [`FitResult::interval_method`] names it. The columns of `J` are
+//! scaled to unit norm for all of this (sensitivities span decades).
 //!
 //! # Determinism
 //!
@@ -77,6 +121,27 @@ pub trait Residuals: Sync {
     /// same number of residuals for every call. Return `Err` if the model cannot be
     /// evaluated for these parameters.
     fn residuals(&self, params: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError>;
+
+    /// The group of every residual (one id per residual, in order; ids need not be
+    /// contiguous) when errors may be correlated within a group but not between groups,
+    /// e.g. a sweep's frequency steps. `None` (the default): independent errors of equal
+    /// variance. Selects the uncertainty estimate (module docs).
+    fn error_groups(&self) -> Option<Vec<usize>> {
+        None
+    }
+
+    /// For a model evaluated with a step (a simulation), second-order accurate in it:
+    /// writes the residuals at `params` evaluated with half the step into `out` and
+    /// returns `Ok(true)`. The default, `Ok(false)`, says the evaluation is exact. Used
+    /// once, at the optimum, to correct the 95% intervals for the step's error (module
+    /// docs).
+    fn refined_residuals(
+        &self,
+        _params: &[f64],
+        _out: &mut Vec<f64>,
+    ) -> Result<bool, ResidualError> {
+        Ok(false)
+    }
 }
 
 /// One parameter to fit.
@@ -169,6 +234,18 @@ pub struct FitResult {
     pub std_errors: Vec<f64>,
     /// Correlation matrix of the estimates (row-major, p x p; NaN if singular).
     pub correlation: Vec<Vec<f64>>,
+    /// 95% interval `(lower, upper)` of every parameter (module docs: centred at
+    /// `values + interval_shift`, symmetric in `ln x` for a log-scale parameter, clipped
+    /// at the bounds).
+    pub interval_95: Vec<(f64, f64)>,
+    /// Whether each interval was clipped at a bound (the parameter is at or near it).
+    pub interval_clipped: Vec<Clipped>,
+    /// Where each interval is centred, relative to the fitted value: the estimated
+    /// distance to the exact model's optimum (Gauss-Newton step plus the step-error
+    /// correction, module docs).
+    pub interval_shift: Vec<f64>,
+    /// How the intervals were computed, e.g. `independent errors, t(68011) = 1.960`.
+    pub interval_method: String,
     /// Sum of squared residuals at the optimum.
     pub ssr: f64,
     /// Number of residuals n.
@@ -194,6 +271,83 @@ impl FitResult {
     pub fn get(&self, name: &str) -> Option<(f64, f64)> {
         let i = self.names.iter().position(|n| n == name)?;
         Some((self.values[i], self.std_errors[i]))
+    }
+
+    /// The 95% interval of every parameter by name, `[lower, upper]`.
+    pub fn intervals_by_name(&self) -> std::collections::BTreeMap<String, [f64; 2]> {
+        self.names
+            .iter()
+            .zip(&self.interval_95)
+            .map(|(n, &(lo, hi))| (n.clone(), [lo, hi]))
+            .collect()
+    }
+
+    /// The parameters whose interval was clipped at a bound, by name: `"lower"`,
+    /// `"upper"` or `"both"`.
+    pub fn clipped_by_name(&self) -> std::collections::BTreeMap<String, String> {
+        self.names
+            .iter()
+            .zip(&self.interval_clipped)
+            .filter_map(|(n, c)| c.as_str().map(|s| (n.clone(), s.to_string())))
+            .collect()
+    }
+
+    /// A short note on parameter `i`'s interval for tables: clipped at a bound, or
+    /// centred away from the fitted value by more than half a standard error (module
+    /// docs); empty otherwise.
+    pub fn interval_note(&self, i: usize) -> String {
+        let mut notes = Vec::new();
+        if let Some(c) = self.interval_clipped.get(i).and_then(|c| c.as_str()) {
+            notes.push(Clipped::note_for(c));
+        }
+        let (shift, se) = (self.interval_shift[i], self.std_errors[i]);
+        if shift.abs() > 0.5 * se {
+            let centre = self.values[i] + shift;
+            let centre = if (1e-3..1e5).contains(&centre.abs()) {
+                format!("{centre:.6}")
+            } else {
+                format!("{centre:.5e}")
+            };
+            notes.push(format!(
+                "centred at {centre} (exact model, {:+.1} std errors)",
+                shift / se
+            ));
+        }
+        notes.join("; ")
+    }
+}
+
+/// Whether a 95% interval reached past a parameter's bound and was clipped there.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Clipped {
+    /// Inside both bounds.
+    #[default]
+    No,
+    /// Clipped at the lower bound.
+    Lower,
+    /// Clipped at the upper bound.
+    Upper,
+    /// Clipped at both (e.g. an infinite standard error).
+    Both,
+}
+
+impl Clipped {
+    /// What a table says of an interval clipped as `name` ([`Self::as_str`]).
+    pub fn note_for(name: &str) -> String {
+        match name {
+            "both" => "not determined by these data: the interval is the bounds".into(),
+            side => format!("clipped at the {side} bound"),
+        }
+    }
+
+    /// `None`, `"lower"`, `"upper"` or `"both"` (for tables and JSON).
+    pub fn as_str(self) -> Option<&'static str> {
+        match self {
+            Clipped::No => None,
+            Clipped::Lower => Some("lower"),
+            Clipped::Upper => Some("upper"),
+            Clipped::Both => Some("both"),
+        }
     }
 }
 
@@ -246,6 +400,14 @@ pub enum FitError {
         got: usize,
         /// The parameter values.
         params: String,
+    },
+    /// [`Residuals::error_groups`] gave a group for a different number of residuals.
+    #[error("the model gave error groups for {got} residuals but returns {expected}; give one group id per residual")]
+    ErrorGroups {
+        /// Residuals.
+        expected: usize,
+        /// Group ids.
+        got: usize,
     },
     /// The optimiser stopped on a numerical problem.
     #[error("the optimiser failed ({reason}) near {params}; check the model for discontinuities or rescale the parameters")]
@@ -625,30 +787,129 @@ pub fn fit(
             target.rejected.get()
         ));
     }
-    let (ssr, std_errors, correlation, extra_evals) =
-        uncertainties(problem, params, &x, n, opts.diff_step)?;
+    let u = uncertainties(problem, params, &x, n, opts.diff_step)?;
     Ok(FitResult {
         names: params.iter().map(|s| s.name.clone()).collect(),
         values: x,
-        std_errors,
-        correlation,
-        ssr,
+        std_errors: u.std_errors,
+        correlation: u.correlation,
+        interval_95: u.interval_95,
+        interval_clipped: u.clipped,
+        interval_shift: u.shift,
+        interval_method: u.method,
+        ssr: u.ssr,
         n_residuals: n,
         iterations: target.jacobians.get(),
-        evaluations: target.evaluations.get() + extra_evals,
+        evaluations: target.evaluations.get() + u.evaluations,
         converged,
         termination,
     })
 }
 
-/// SSR, standard errors and correlation matrix at `x` (see the module docs).
+/// What [`uncertainties`] finds at the optimum.
+struct Uncertainties {
+    ssr: f64,
+    std_errors: Vec<f64>,
+    correlation: Vec<Vec<f64>>,
+    interval_95: Vec<(f64, f64)>,
+    clipped: Vec<Clipped>,
+    shift: Vec<f64>,
+    method: String,
+    evaluations: usize,
+}
+
+/// The two-sided 95% quantile of Student's t with `df` degrees of freedom.
+fn t_quantile_95(df: f64) -> f64 {
+    use statrs::distribution::{ContinuousCDF, StudentsT};
+    StudentsT::new(0.0, 1.0, df.max(1.0)).map_or(1.959_963_984_540_054, |t| t.inverse_cdf(0.975))
+}
+
+/// The parameters the data determine: pivoted Cholesky of `A = J^T J` scaled to unit
+/// diagonal, taking the column with the largest remaining diagonal (`1 - R^2` of that
+/// column on those taken) while it exceeds 1e-10; a zero column is never taken. In the
+/// parameters' order.
+fn identifiable(a: &na::DMatrix<f64>) -> Vec<usize> {
+    let p = a.nrows();
+    let d: Vec<f64> = (0..p).map(|j| a[(j, j)]).collect();
+    let ok: Vec<bool> = d.iter().map(|v| v.is_finite() && *v > 0.0).collect();
+    // correlation-scaled copy
+    let mut m = na::DMatrix::from_fn(p, p, |i, j| {
+        if ok[i] && ok[j] {
+            a[(i, j)] / (d[i] * d[j]).sqrt()
+        } else {
+            0.0
+        }
+    });
+    let mut taken = Vec::new();
+    while let Some((j, rest)) = (0..p)
+        .filter(|j| ok[*j] && !taken.contains(j))
+        .map(|j| (j, m[(j, j)]))
+        .max_by(|x, y| x.1.total_cmp(&y.1))
+        .filter(|(_, rest)| *rest > 1e-10)
+    {
+        // eliminate column j from the remaining ones (Schur complement)
+        let col: Vec<f64> = (0..p).map(|i| m[(i, j)]).collect();
+        for r in 0..p {
+            for c in 0..p {
+                m[(r, c)] -= col[r] * col[c] / rest;
+            }
+        }
+        taken.push(j);
+    }
+    taken.sort_unstable();
+    taken
+}
+
+/// The linearised delete-one-group jackknife covariance (module docs) of the scaled
+/// problem: `jac` n x p, residuals `r`, group of every residual. `None` with fewer than
+/// `p + 2` groups; infinite where leaving a group out leaves the estimate undetermined.
+fn jackknife_covariance(
+    jac: &na::DMatrix<f64>,
+    r: &[f64],
+    groups: &[usize],
+) -> Option<(na::DMatrix<f64>, usize)> {
+    let p = jac.ncols();
+    let mut ids: Vec<usize> = groups.to_vec();
+    ids.sort_unstable();
+    ids.dedup();
+    let g = ids.len();
+    if g < p + 2 {
+        return None;
+    }
+    let mut a_g = vec![na::DMatrix::<f64>::zeros(p, p); g];
+    let mut s_g = vec![na::DVector::<f64>::zeros(p); g];
+    for (i, id) in groups.iter().enumerate() {
+        let k = ids.binary_search(id).unwrap_or(0);
+        let row = jac.row(i).transpose();
+        a_g[k] += &row * row.transpose();
+        s_g[k] += &row * r[i];
+    }
+    let a: na::DMatrix<f64> = a_g.iter().sum();
+    let mut d = Vec::with_capacity(g);
+    for (ak, sk) in a_g.iter().zip(&s_g) {
+        match na::Cholesky::new(&a - ak) {
+            Some(c) => d.push(c.solve(sk)),
+            None => return Some((na::DMatrix::from_element(p, p, f64::INFINITY), g)),
+        }
+    }
+    let mean: na::DVector<f64> = d.iter().sum::<na::DVector<f64>>() / g as f64;
+    let mut cov = na::DMatrix::<f64>::zeros(p, p);
+    for dk in &d {
+        let c = dk - &mean;
+        cov += &c * c.transpose();
+    }
+    Some((cov * ((g - 1) as f64 / g as f64), g))
+}
+
+/// SSR, covariance, standard errors, correlations and 95% intervals at `x` (see the
+/// module docs).
 fn uncertainties(
     problem: &dyn Residuals,
     specs: &[ParamSpec],
     x: &[f64],
     n: usize,
     diff_step: f64,
-) -> Result<(f64, Vec<f64>, Vec<Vec<f64>>, usize), FitError> {
+) -> Result<Uncertainties, FitError> {
     let p = x.len();
     // scale of each parameter: differences are taken relative to it
     let scale: Vec<f64> = x
@@ -680,27 +941,174 @@ fn uncertainties(
         v
     };
     let (r0, cols, extra) = differences(problem, specs, x, &point, &steps, n)?;
+    let mut evaluations = p + 1 + extra;
     let ssr: f64 = r0.iter().map(|v| v * v).sum();
     // Jacobian w.r.t. relative changes x_j (1 + d_j): J_s = J diag(scale)
     let js = na::DMatrix::from_fn(n, p, |i, j| cols[j][i] * scale[j]);
-    let jtj = js.transpose() * &js;
-    let sigma2 = ssr / (n - p) as f64;
-    let inv = na::Cholesky::new(jtj).map(|c| c.inverse());
-    let (std_errors, correlation) = match inv {
-        Some(inv) if inv.iter().all(|v| v.is_finite()) => {
-            let se: Vec<f64> = (0..p)
-                .map(|j| (sigma2 * inv[(j, j)]).sqrt() * scale[j])
-                .collect();
-            let corr = (0..p)
-                .map(|i| {
-                    (0..p)
-                        .map(|k| inv[(i, k)] / (inv[(i, i)] * inv[(k, k)]).sqrt())
-                        .collect()
-                })
-                .collect();
-            (se, corr)
+    // Parameters the data do not determine (a zero column, or one the others explain)
+    // get an infinite error; the rest are estimated without them.
+    let keep = identifiable(&(js.transpose() * &js));
+    let dropped: Vec<&str> = (0..p)
+        .filter(|j| !keep.contains(j))
+        .map(|j| specs[j].name.as_str())
+        .collect();
+    let q = keep.len();
+    // the kept columns, each scaled to unit norm (a plain change of units that keeps
+    // J^T J well scaled when sensitivities span decades)
+    let mut jk = js.select_columns(&keep);
+    let norms: Vec<f64> = jk.column_iter().map(|c| c.norm()).collect();
+    for (mut c, nrm) in jk.column_iter_mut().zip(&norms) {
+        c /= *nrm;
+    }
+    let inv = na::Cholesky::new(jk.transpose() * &jk)
+        .map(|c| c.inverse())
+        .filter(|m| q > 0 && m.iter().all(|v| v.is_finite()));
+    // The covariance of the relative changes of the kept parameters, and the degrees
+    // of freedom of t.
+    let groups = problem.error_groups();
+    if let Some(g) = &groups {
+        if g.len() != n {
+            return Err(FitError::ErrorGroups {
+                expected: n,
+                got: g.len(),
+            });
         }
-        _ => (vec![f64::INFINITY; p], vec![vec![f64::NAN; p]; p]),
+    }
+    let independent = |why: &str| {
+        let df = (n - q.max(1)) as f64;
+        (
+            inv.as_ref().map(|m| m * (ssr / df)),
+            df,
+            format!(
+                "independent errors{why}, t({}) = {:.3}",
+                n - q.max(1),
+                t_quantile_95(df)
+            ),
+        )
     };
-    Ok((ssr, std_errors, correlation, p + 1 + extra))
+    let (cov, df, mut method) = match (&groups, &inv) {
+        (Some(g), Some(_)) => match jackknife_covariance(&jk, &r0, g) {
+            Some((c, count)) => {
+                let df = (count - 1) as f64;
+                (
+                    Some(c),
+                    df,
+                    format!(
+                        "delete-one-group jackknife over {count} error groups, t({}) = {:.3}",
+                        count - 1,
+                        t_quantile_95(df)
+                    ),
+                )
+            }
+            None => independent(" (too few error groups for the jackknife)"),
+        },
+        _ => independent(""),
+    };
+    if !dropped.is_empty() {
+        method.push_str(&format!(
+            "; not identifiable from these data: {}",
+            dropped.join(", ")
+        ));
+    }
+    let mut std_errors = vec![f64::INFINITY; p];
+    let mut correlation = vec![vec![f64::NAN; p]; p];
+    if let Some(c) = &cov {
+        if (0..q).all(|a| c[(a, a)].is_finite() && c[(a, a)] >= 0.0) {
+            for (a, &i) in keep.iter().enumerate() {
+                std_errors[i] = c[(a, a)].sqrt() / norms[a] * scale[i];
+                for (b, &k) in keep.iter().enumerate() {
+                    correlation[i][k] = c[(a, b)] / (c[(a, a)] * c[(b, b)]).sqrt();
+                }
+            }
+        }
+    }
+    // Where the intervals are centred: the Gauss-Newton step to the optimum, plus the
+    // Richardson estimate of the exact model's optimum when the model has a step.
+    let mut shift = vec![0.0; p];
+    if let Some(inv) = &inv {
+        let mut target: Vec<f64> = r0.iter().map(|v| -v).collect();
+        let mut refined = Vec::with_capacity(n);
+        // A model that fails at half its step leaves the intervals uncorrected (and
+        // says so) rather than failing the fit.
+        match problem.refined_residuals(x, &mut refined) {
+            Ok(false) => {}
+            Ok(true) if refined.len() == n && refined.iter().all(|v| v.is_finite()) => {
+                evaluations += 1;
+                // the residuals' own error e = 4/3 (r(h) - r(h/2)); the exact model's
+                // residuals are r - e
+                for ((t, a), b) in target.iter_mut().zip(&r0).zip(&refined) {
+                    *t += 4.0 / 3.0 * (a - b);
+                }
+                method.push_str("; centred for the model's step error");
+            }
+            Ok(true) => {
+                evaluations += 1;
+                method.push_str(
+                    "; not corrected for the model's step error (the refined evaluation gave non-finite or too few residuals)",
+                );
+            }
+            Err(e) => {
+                evaluations += 1;
+                method.push_str(&format!(
+                    "; not corrected for the model's step error (the refined evaluation failed: {e})"
+                ));
+            }
+        }
+        let step = inv * (jk.transpose() * na::DVector::from_vec(target));
+        for (a, &j) in keep.iter().enumerate() {
+            if step[a].is_finite() {
+                shift[j] = step[a] / norms[a] * scale[j];
+            }
+        }
+    }
+    let t = t_quantile_95(df);
+    let mut interval_95 = Vec::with_capacity(p);
+    let mut clipped = Vec::with_capacity(p);
+    for j in 0..p {
+        let s = &specs[j];
+        let (lo, hi) = interval(x[j], shift[j], t * std_errors[j], s);
+        // NaN ends count as beyond the bound
+        let below = lo.is_nan() || lo <= s.lower;
+        let above = hi.is_nan() || hi >= s.upper;
+        // Clipped into the bounds; a clipped interval also reaches the fitted value (a
+        // parameter at or near its bound whose optimum lies beyond it: the interval
+        // runs from the bound to the fitted value at least).
+        let (mut lo, mut hi) = (lo.max(s.lower).min(s.upper), hi.min(s.upper).max(s.lower));
+        if below || above {
+            lo = lo.min(x[j]);
+            hi = hi.max(x[j]);
+        }
+        interval_95.push((lo, hi));
+        clipped.push(match (below, above) {
+            (false, false) => Clipped::No,
+            (true, false) => Clipped::Lower,
+            (false, true) => Clipped::Upper,
+            (true, true) => Clipped::Both,
+        });
+    }
+    Ok(Uncertainties {
+        ssr,
+        std_errors,
+        correlation,
+        interval_95,
+        clipped,
+        shift,
+        method,
+        evaluations,
+    })
+}
+
+/// The unclipped interval of a parameter fitted at `x`, centred at `x + shift`, of
+/// half-width `half` (in the parameter; for a log-scale one in `ln x`, as `half / x`).
+/// NaN half-widths give infinite ends.
+fn interval(x: f64, shift: f64, half: f64, spec: &ParamSpec) -> (f64, f64) {
+    let half = if half.is_nan() { f64::INFINITY } else { half };
+    let c = x + shift;
+    if spec.log_scale && x > 0.0 {
+        let h = half / x;
+        let lc = if c > 0.0 { c.ln() } else { f64::NEG_INFINITY };
+        ((lc - h).exp(), (lc + h).exp())
+    } else {
+        (c - half, c + half)
+    }
 }

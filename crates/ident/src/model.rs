@@ -10,7 +10,7 @@ use longreach_scenario::ScenarioError;
 use serde::Serialize;
 
 use crate::dataset::{Dataset, DatasetKind};
-use crate::fitting::ParamSpec;
+use crate::fitting::{FitResult, ParamSpec};
 
 /// One parameter of a model: its value, bounds, and whether it is fitted.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -474,6 +474,48 @@ impl Model {
 
     /// The model as a model file (TOML text).
     pub fn to_toml(&self, comment: &str) -> String {
+        self.to_toml_with_fit(comment, None)
+    }
+
+    /// The model as a model file, with the 95% interval of every parameter `fit`
+    /// fitted (`interval_95 = [lower, upper]`, a list of them for a per-run parameter;
+    /// the reader ignores the key).
+    pub fn to_toml_with_fit(&self, comment: &str, fit: Option<&FitResult>) -> String {
+        let interval = |name: &str| -> Option<(String, &'static str)> {
+            let r = fit?;
+            let i = r.names.iter().position(|n| n == name)?;
+            let (lo, hi) = r.interval_95[i];
+            Some((
+                format!("[{lo:e}, {hi:e}]"),
+                r.interval_clipped[i].as_str().unwrap_or(""),
+            ))
+        };
+        let interval_line = |p: &ParamDef| -> Option<String> {
+            let (text, clipped) = match &p.run_values {
+                Some(v) if p.per_run => {
+                    let each: Option<Vec<(String, &str)>> = (0..v.len())
+                        .map(|r| interval(&format!("{}[{r}]", p.name)))
+                        .collect();
+                    let each = each?;
+                    let clipped = each.iter().any(|(_, c)| !c.is_empty());
+                    let list: Vec<String> = each.into_iter().map(|(t, _)| t).collect();
+                    (
+                        format!("[{}]", list.join(", ")),
+                        if clipped { "some" } else { "" },
+                    )
+                }
+                _ => interval(&p.name)?,
+            };
+            let note = match clipped {
+                "" => String::new(),
+                "both" => ", clipped at both bounds".into(),
+                "some" => ", some clipped at a bound".into(),
+                side => format!(", clipped at the {side} bound"),
+            };
+            Some(format!(
+                "interval_95 = {text}   # 95% interval{note} (not read)\n"
+            ))
+        };
         let mut s = String::new();
         for line in comment.lines() {
             s.push_str(&format!("# {line}\n"));
@@ -494,6 +536,9 @@ impl Model {
                 "fit = {}\nlower = {:e}\nupper = {:e}\nper_run = {}\n",
                 p.fit, p.lower, p.upper, p.per_run
             ));
+            if let Some(line) = interval_line(p) {
+                s.push_str(&line);
+            }
         };
         for p in &self.base {
             param(&mut s, "params", p);
@@ -766,8 +811,17 @@ fn parse_param(
     match val {
         toml::Value::Table(t) => {
             for k in t.keys() {
-                if !["value", "fit", "lower", "upper", "per_run", "run_values"]
-                    .contains(&k.as_str())
+                // `interval_95`: written with fitted values, ignored when read
+                if ![
+                    "value",
+                    "fit",
+                    "lower",
+                    "upper",
+                    "per_run",
+                    "run_values",
+                    "interval_95",
+                ]
+                .contains(&k.as_str())
                 {
                     return Err(err(format!("unknown key `{k}`")));
                 }

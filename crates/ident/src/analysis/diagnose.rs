@@ -25,6 +25,10 @@ pub struct Candidate {
     pub explained: f64,
     /// Fitted parameters (baseline's and the effect's).
     pub params: std::collections::BTreeMap<String, f64>,
+    /// 95% intervals of the fitted ones, `[lower, upper]` (empty when screened).
+    pub interval_95: std::collections::BTreeMap<String, [f64; 2]>,
+    /// Those clipped at a bound: `"lower"`, `"upper"` or `"both"`.
+    pub interval_clipped: std::collections::BTreeMap<String, String>,
     /// True for the winner when the evidence is decisive.
     pub decisive: bool,
     /// True when the candidate was only screened ([`screen_model`]: its starting values,
@@ -46,6 +50,10 @@ pub struct BaselineSummary {
     pub params: std::collections::BTreeMap<String, f64>,
     /// Their standard errors.
     pub std_errors: std::collections::BTreeMap<String, f64>,
+    /// Their 95% intervals, `[lower, upper]`.
+    pub interval_95: std::collections::BTreeMap<String, [f64; 2]>,
+    /// Those clipped at a bound: `"lower"`, `"upper"` or `"both"`.
+    pub interval_clipped: std::collections::BTreeMap<String, String>,
 }
 
 /// The result of `diagnose`.
@@ -150,6 +158,16 @@ pub fn diagnose(
                         score,
                         explained: explained.min(1.5),
                         params: f.model.named_values().into_iter().collect(),
+                        interval_95: f
+                            .fit
+                            .as_ref()
+                            .map(|r| r.intervals_by_name())
+                            .unwrap_or_default(),
+                        interval_clipped: f
+                            .fit
+                            .as_ref()
+                            .map(|r| r.clipped_by_name())
+                            .unwrap_or_default(),
                         decisive: false,
                         screened: at_floor,
                         error: None,
@@ -164,6 +182,8 @@ pub fn diagnose(
                     score: f64::NEG_INFINITY,
                     explained: 0.0,
                     params: Default::default(),
+                    interval_95: Default::default(),
+                    interval_clipped: Default::default(),
                     decisive: false,
                     screened: at_floor,
                     error: Some(err.to_string()),
@@ -233,6 +253,16 @@ pub fn diagnose(
                         .zip(f.std_errors.iter().copied())
                         .collect()
                 })
+                .unwrap_or_default(),
+            interval_95: base
+                .fit
+                .as_ref()
+                .map(|f| f.intervals_by_name())
+                .unwrap_or_default(),
+            interval_clipped: base
+                .fit
+                .as_ref()
+                .map(|f| f.clipped_by_name())
                 .unwrap_or_default(),
         },
         where_: cmp.where_.clone(),

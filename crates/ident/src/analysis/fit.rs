@@ -26,6 +26,19 @@ impl Residuals for Problem<'_, '_> {
         *out = self.prep.residuals_of(&sims);
         Ok(())
     }
+
+    fn error_groups(&self) -> Option<Vec<usize>> {
+        self.prep.error_groups()
+    }
+
+    fn refined_residuals(&self, params: &[f64], out: &mut Vec<f64>) -> Result<bool, ResidualError> {
+        let m = self.model.with_values(params, self.prep.runs.len());
+        let Some(sims) = self.prep.simulate_refined(&m) else {
+            return Ok(false);
+        };
+        *out = self.prep.residuals_of(&sims?);
+        Ok(true)
+    }
 }
 
 /// Outcome of fitting a model.

@@ -165,6 +165,51 @@ impl<'a> Prepared<'a> {
         out
     }
 
+    /// The error group of every residual of [`Self::residuals_of`], for the fits'
+    /// uncertainties ([`crate::fitting::Residuals::error_groups`]): a sweep's analysed
+    /// samples grouped by test frequency, over all runs (the encoder's quantisation error
+    /// is coherent over a frequency step, and runs that see the same signal, such as a
+    /// linear rope at several mean tensions, see the same error). `None` for relaxation
+    /// and cyclic tests, whose tension noise is independent from sample to sample.
+    pub fn error_groups(&self) -> Option<Vec<usize>> {
+        if self.kind != DataKind::SineSweep {
+            return None;
+        }
+        let mut freqs: Vec<f64> = Vec::new();
+        let mut out = Vec::with_capacity(self.n_samples());
+        for run in &self.runs {
+            for &(f, a, b) in &run.segments {
+                let id = freqs
+                    .iter()
+                    .position(|g| g.to_bits() == f.to_bits())
+                    .unwrap_or_else(|| {
+                        freqs.push(f);
+                        freqs.len() - 1
+                    });
+                out.extend(std::iter::repeat_n(id, b - a));
+            }
+        }
+        Some(out)
+    }
+
+    /// Simulates `model` on every run at half the time step of [`Self::simulate`], for
+    /// the step-error correction of the fits' intervals
+    /// ([`crate::fitting::Residuals::refined_residuals`]); `None` for data kinds whose
+    /// simulation has no step error to speak of (relaxation in closed form or by the
+    /// exact-hold rope step).
+    pub fn simulate_refined(&self, model: &Model) -> Option<Result<Vec<Vec<f64>>, IdentError>> {
+        if self.kind != DataKind::SineSweep {
+            return None;
+        }
+        let plant = plant_for(self.ds, 2 * sim::SWEEP_SUBSTEPS);
+        Some(
+            (0..self.runs.len())
+                .into_par_iter()
+                .map(|r| Ok(plant.simulate(&model.plant_params(r)?, r)?.into_primary()))
+                .collect(),
+        )
+    }
+
     /// Per-run `(SSE, SST, n)` over the analysed samples.
     pub fn sums(&self, sims: &[Vec<f64>]) -> Vec<(f64, f64, usize)> {
         self.runs

@@ -7,6 +7,7 @@ mod dataset_errors;
 mod diagnose_loop;
 mod examples;
 mod fitting;
+mod intervals;
 mod metrics;
 mod new_effects;
 mod relay_friction;
