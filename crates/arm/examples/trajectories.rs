@@ -196,6 +196,7 @@ fn dump(out: &Path) {
             coefficient: 0.003,
             inertia_kg_m2: 2e-5,
             slip_rate_rad_s: RelayFriction::DEFAULT_SLIP_RATE_RAD_S,
+            coefficient_table: None,
         });
         let model = RigModel::new(spec, 1e-3).unwrap();
         rig_traj(&model, &input).write(&out.join(format!("{name}.bin")));

@@ -513,6 +513,7 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
                     coefficient: r.coefficient,
                     inertia_kg_m2: r.inertia_kg_m2,
                     slip_rate_rad_s: r.slip_rate_rad_s,
+                    coefficient_table: None,
                 };
                 if let Err(e) = rf.validate() {
                     // Point at the key in this transmission, or in the defaults.

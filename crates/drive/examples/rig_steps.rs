@@ -20,6 +20,7 @@ fn main() {
             coefficient,
             inertia_kg_m2: 2e-5,
             slip_rate_rad_s: RelayFriction::DEFAULT_SLIP_RATE_RAD_S,
+            coefficient_table: None,
         });
     let model = RigModel::new(spec, 1e-3).unwrap();
     let mut st = model.rest_state();

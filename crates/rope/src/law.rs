@@ -33,6 +33,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::catalog::RopeParams;
 use crate::error::RopeError;
+use crate::table::Table;
 
 /// Largest number of Kelvin (retarded-elasticity) elements a law may hold.
 pub const MAX_KELVIN: usize = 3;
@@ -106,6 +107,14 @@ pub struct RopeLaw {
     pub stiffening_per_n: f64,
     /// Stress-dependent creep of the c2 dashpot; `None` = linear dashpot.
     pub creep: Option<NonlinearCreep>,
+    /// Shape-free head spring: its tangent stiffness is `k1 * g(f)` with `g` this table
+    /// of the tension (replaces `stiffening_per_n`); `None` = none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stiffness_table: Option<Table>,
+    /// Shape-free creep: the c2 dashpot's rate is `f / c2 * h(f)` with `h` this table of
+    /// the tension (replaces `creep`); `None` = none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub creep_table: Option<Table>,
 }
 
 impl RopeLaw {
@@ -119,6 +128,8 @@ impl RopeLaw {
             kp_n: None,
             stiffening_per_n: 0.0,
             creep: None,
+            stiffness_table: None,
+            creep_table: None,
         }
     }
 
@@ -223,6 +234,45 @@ impl RopeLaw {
                 "must be finite and >= 0 (0 = linear spring)",
             );
         }
+        if let Some(t) = &self.stiffness_table {
+            if !t.positive() {
+                return bad(
+                    "stiffness_table",
+                    t.y().iter().copied().fold(f64::INFINITY, f64::min),
+                    "every stiffness factor must be > 0",
+                );
+            }
+            if self.stiffening_per_n > 0.0 {
+                return bad(
+                    "stiffness_table",
+                    self.stiffening_per_n,
+                    "give stiffening_per_n or a stiffness table, not both",
+                );
+            }
+        }
+        if let Some(t) = &self.creep_table {
+            if self.c2_n_s.is_none() {
+                return bad(
+                    "creep_table",
+                    t.y()[0],
+                    "non-linear creep needs the c2 dashpot (a four-element or Flory law)",
+                );
+            }
+            if !t.positive() {
+                return bad(
+                    "creep_table",
+                    t.y().iter().copied().fold(f64::INFINITY, f64::min),
+                    "every creep factor must be > 0",
+                );
+            }
+            if self.creep.is_some() {
+                return bad(
+                    "creep_table",
+                    t.y()[0],
+                    "give the creep law or a creep table, not both",
+                );
+            }
+        }
         if let Some(c) = self.creep {
             if self.c2_n_s.is_none() {
                 return bad(
@@ -243,12 +293,26 @@ impl RopeLaw {
 
     /// True when every element is linear (the end tension has a closed form).
     pub fn is_linear(&self) -> bool {
-        self.stiffening_per_n == 0.0 && self.creep.is_none()
+        !self.stiffens() && !self.creeps_nonlinearly()
+    }
+
+    /// True when the head spring's stiffness depends on the tension.
+    pub fn stiffens(&self) -> bool {
+        self.stiffening_per_n != 0.0 || self.stiffness_table.is_some()
+    }
+
+    /// True when the creep dashpot's rate is not linear in the tension.
+    pub fn creeps_nonlinearly(&self) -> bool {
+        self.creep.is_some() || self.creep_table.is_some()
     }
 
     /// Strain of the head spring carrying tension `f` (inverse of the spring law).
+    #[inline]
     pub fn head_strain(&self, tension_n: f64) -> f64 {
         let f = tension_n.max(0.0);
+        if let Some(t) = &self.stiffness_table {
+            return t.integral_inv(f) / self.k1_n;
+        }
         let b = self.stiffening_per_n;
         if b == 0.0 {
             f / self.k1_n
@@ -260,6 +324,9 @@ impl RopeLaw {
     /// Tension of the head spring at strain `e1` (the spring alone, no dashpot).
     pub fn head_tension(&self, e1: f64) -> f64 {
         let e = e1.max(0.0);
+        if let Some(t) = &self.stiffness_table {
+            return t.inverse_integral_inv(self.k1_n * e);
+        }
         let b = self.stiffening_per_n;
         if b == 0.0 {
             self.k1_n * e
@@ -269,8 +336,27 @@ impl RopeLaw {
     }
 
     /// Tangent stiffness of the head spring at tension `f` [N per unit strain].
+    #[inline]
     pub fn head_stiffness(&self, tension_n: f64) -> f64 {
+        if let Some(t) = &self.stiffness_table {
+            return self.k1_n * t.eval(tension_n);
+        }
         self.k1_n * (1.0 + self.stiffening_per_n * tension_n.max(0.0))
+    }
+
+    /// Elastic energy per unit length of the head spring at strain `e1` [N].
+    fn head_energy(&self, e1: f64) -> f64 {
+        let e1 = e1.max(0.0);
+        if let Some(t) = &self.stiffness_table {
+            return t.integral_x_over(self.head_tension(e1)) / self.k1_n;
+        }
+        let b = self.stiffening_per_n;
+        if b == 0.0 {
+            0.5 * self.k1_n * e1 * e1
+        } else {
+            let k = self.k1_n;
+            (k * b * e1).exp_m1() / (k * b * b) - e1 / b
+        }
     }
 
     /// Quasi-static strain of the rope held at tension `f` long enough for every Kelvin
@@ -280,11 +366,14 @@ impl RopeLaw {
     }
 
     /// Creep strain rate of the c2 dashpot at tension `f` [1/s].
-    fn creep_rate(&self, tension_n: f64) -> f64 {
+    pub fn creep_rate(&self, tension_n: f64) -> f64 {
         match self.c2_n_s {
             None => 0.0,
             Some(c2) => {
                 let f = tension_n.max(0.0);
+                if let Some(t) = &self.creep_table {
+                    return f / c2 * t.eval(f);
+                }
                 let nl = self
                     .creep
                     .map_or(0.0, |c| (f / c.tension_n).powf(c.exponent));
@@ -299,6 +388,10 @@ impl RopeLaw {
             None => 0.0,
             Some(c2) => {
                 let f = tension_n.max(0.0);
+                if let Some(t) = &self.creep_table {
+                    let (h, dh) = t.eval_slope(f);
+                    return (h + f * dh) / c2;
+                }
                 let nl = self.creep.map_or(0.0, |c| {
                     (c.exponent + 1.0) * (f / c.tension_n).powf(c.exponent)
                 });
@@ -522,7 +615,7 @@ impl RopeStepper {
         }
         let mut rest = s.e2 + 0.5 * h * self.law.creep_rate(f0);
         let mut compliance = 0.0;
-        if self.law.c2_n_s.is_some() && self.law.creep.is_none() {
+        if self.law.c2_n_s.is_some() && !self.law.creeps_nonlinearly() {
             compliance += 0.5 * h * self.law.creep_rate_slope(0.0);
         }
         for (hold, e3) in self.kelvin[..self.n_kelvin].iter().zip(&s.e3) {
@@ -533,7 +626,7 @@ impl RopeStepper {
             Some(hold) => {
                 // Kelvin head k1 || c1, its spring linearised at the start tension.
                 let k = self.law.head_stiffness(f0);
-                let scaled = if self.law.stiffening_per_n == 0.0 {
+                let scaled = if !self.law.stiffens() {
                     hold
                 } else {
                     Hold::kelvin(k, self.law.c1_n_s, h)
@@ -541,7 +634,7 @@ impl RopeStepper {
                 rest += scaled.a * s.e1 + scaled.b0 * f0;
                 compliance += scaled.b1;
             }
-            None if self.law.stiffening_per_n == 0.0 => compliance += 1.0 / self.law.k1_n,
+            None if !self.law.stiffens() => compliance += 1.0 / self.law.k1_n,
             None => {}
         }
         PreparedStep {
@@ -557,11 +650,11 @@ impl RopeStepper {
     fn residual(&self, p: &PreparedStep, f: f64, strain: f64) -> (f64, f64) {
         let mut g = p.rest + p.compliance * f - strain;
         let mut dg = p.compliance;
-        if self.head_hold.is_none() && self.law.stiffening_per_n > 0.0 {
+        if self.head_hold.is_none() && self.law.stiffens() {
             g += self.law.head_strain(f);
             dg += 1.0 / self.law.head_stiffness(f);
         }
-        if self.law.creep.is_some() {
+        if self.law.creeps_nonlinearly() {
             g += 0.5 * self.dt_s * self.law.creep_rate(f);
             dg += 0.5 * self.dt_s * self.law.creep_rate_slope(f);
         }
@@ -653,7 +746,7 @@ impl RopeStepper {
     ) -> f64 {
         let f0 = p.f0;
         let h = self.dt_s;
-        s.e2 += if self.law.creep.is_none() {
+        s.e2 += if !self.law.creeps_nonlinearly() {
             self.half_h_over_c2 * (f0 + f1)
         } else {
             0.5 * h * (self.law.creep_rate(f0) + self.law.creep_rate(f1))
@@ -707,14 +800,7 @@ impl RopeStepper {
     /// Elastic energy stored in the springs of a rope of `length_m` [J] (head spring and
     /// Kelvin springs; the ratchet's locked strain stores none that can be returned).
     pub fn stored_energy_j(&self, s: &RopeState, length_m: f64) -> f64 {
-        let e1 = s.e1.max(0.0);
-        let b = self.law.stiffening_per_n;
-        let head = if b == 0.0 {
-            0.5 * self.law.k1_n * e1 * e1
-        } else {
-            let k = self.law.k1_n;
-            (k * b * e1).exp_m1() / (k * b * b) - e1 / b
-        };
+        let head = self.law.head_energy(s.e1);
         let kelvin: f64 = self
             .law
             .kelvin

@@ -21,6 +21,7 @@ mod catalog;
 mod error;
 mod law;
 mod relaxation;
+mod table;
 
 pub use catalog::{Catalog, RopeParams, BUILTIN_CATALOG_TOML};
 pub use error::RopeError;
@@ -29,3 +30,4 @@ pub use law::{
     MAX_KELVIN,
 };
 pub use relaxation::{relaxation_tension_n, rms_error};
+pub use table::{Table, TableFile, MAX_KNOTS};

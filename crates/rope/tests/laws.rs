@@ -3,7 +3,7 @@
 
 use longreach_rope::{
     relaxation_tension_n, Catalog, KelvinElement, LawKind, NonlinearCreep, RopeError, RopeLaw,
-    RopeStepper,
+    RopeStepper, Table,
 };
 
 fn four_element_ropes() -> Vec<(String, RopeLaw)> {
@@ -365,4 +365,104 @@ fn stored_energy_of_elastic_rope() {
     stepper.run_strain_history(&mut s, &[0.004]).unwrap();
     let e = stepper.stored_energy_j(&s, 15.2);
     assert!((e - 15.2 * 0.5 * 1.37e5 * 0.004 * 0.004).abs() < 1e-12);
+}
+
+/// The shape-free head spring: a table of stiffness factors `g(f)` whose two knots lie
+/// on `1 + b f` is the parametric law `k1 (1 + b f)` below its last knot, so the stepped
+/// four-element rope follows the parametric one to round-off; beyond it the stiffness
+/// stays `k1 g(f_last)`; the stored energy is the integral of f de1.
+#[test]
+fn a_stiffness_table_on_the_linear_law_is_that_law() {
+    let p = Catalog::builtin().get("dyneema2").unwrap().clone();
+    let base = RopeLaw::from_params(&p, LawKind::FourElement).unwrap();
+    let b = 2e-3;
+    let parametric = RopeLaw {
+        stiffening_per_n: b,
+        ..base.clone()
+    };
+    let tabled = RopeLaw {
+        stiffness_table: Some(Table::new(&[0.0, 800.0], &[1.0, 1.0 + b * 800.0]).unwrap()),
+        ..base
+    };
+    let (sa, sb) = (
+        RopeStepper::new(parametric.clone(), 1e-3).unwrap(),
+        RopeStepper::new(tabled.clone(), 1e-3).unwrap(),
+    );
+    let (mut xa, mut xb) = (sa.rest_state(100.0, 0.0), sb.rest_state(100.0, 0.0));
+    let mut worst = 0.0f64;
+    let e0 = xa.strain;
+    for i in 0..3000 {
+        let e = e0 + 2e-3 * (i as f64 * 6e-3).sin();
+        let (pa, pb) = (sa.prepare(&xa), sb.prepare(&xb));
+        let fa = sa.commit(&pa, &mut xa, e);
+        let fb = sb.commit(&pb, &mut xb, e);
+        assert!(fa < 800.0);
+        worst = worst.max((fa - fb).abs() / fa.max(1.0));
+    }
+    assert!(worst < 1e-10, "{worst}");
+    // Energy: the head's, against a quadrature of f de1 along the table's law.
+    let f = 300.0;
+    let e1 = tabled.head_strain(f);
+    let n = 20_000;
+    let mut w = 0.0;
+    for k in 0..n {
+        let (fa, fb) = (f * k as f64 / n as f64, f * (k + 1) as f64 / n as f64);
+        w += 0.5 * (fa + fb) * (tabled.head_strain(fb) - tabled.head_strain(fa));
+    }
+    let st = longreach_rope::RopeState {
+        e1,
+        ..Default::default()
+    };
+    let energy = sb.stored_energy_j(&st, 1.0);
+    assert!((energy - w).abs() < 1e-6 * w, "{energy} vs {w}");
+    assert!((tabled.head_tension(e1) - f).abs() < 1e-9 * f);
+    // Beyond the last knot the stiffness is the last factor's.
+    assert!((tabled.head_stiffness(2000.0) - tabled.k1_n * (1.0 + b * 800.0)).abs() < 1e-6);
+}
+
+/// The shape-free creep: a table of creep factors `h(f)` on `1 + f/fc` is the creep law
+/// with exponent 1, below its last knot.
+#[test]
+fn a_creep_table_on_the_linear_law_is_that_law() {
+    let (k1, c2, fc) = (7e4, 2e5, 500.0);
+    let parametric = RopeLaw {
+        c2_n_s: Some(c2),
+        creep: Some(NonlinearCreep {
+            tension_n: fc,
+            exponent: 1.0,
+        }),
+        ..RopeLaw::elastic(k1)
+    };
+    let tabled = RopeLaw {
+        creep: None,
+        creep_table: Some(Table::new(&[0.0, 2000.0], &[1.0, 1.0 + 2000.0 / fc]).unwrap()),
+        ..parametric.clone()
+    };
+    let (sa, sb) = (
+        RopeStepper::new(parametric, 1e-3).unwrap(),
+        RopeStepper::new(tabled, 1e-3).unwrap(),
+    );
+    let mut xa = sa.instant_strain_state(0.015);
+    let mut xb = sb.instant_strain_state(0.015);
+    let a = sa.run_strain_history(&mut xa, &[0.015; 2000]).unwrap();
+    let b = sb.run_strain_history(&mut xb, &[0.015; 2000]).unwrap();
+    let worst = a
+        .iter()
+        .zip(&b)
+        .map(|(x, y)| (x - y).abs() / x)
+        .fold(0.0f64, f64::max);
+    assert!(worst < 1e-10, "{worst}");
+    // Both at once are refused, naming the field.
+    let both = RopeLaw {
+        creep: Some(NonlinearCreep {
+            tension_n: fc,
+            exponent: 1.0,
+        }),
+        ..RopeLaw {
+            creep_table: Some(Table::new(&[0.0, 1.0], &[1.0, 1.0]).unwrap()),
+            ..RopeLaw::elastic(k1)
+        }
+    };
+    let e = both.validate().unwrap_err().to_string();
+    assert!(e.contains("creep"), "{e}");
 }

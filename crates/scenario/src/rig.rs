@@ -99,6 +99,7 @@ impl RigSection {
                 coefficient: r.coefficient,
                 inertia_kg_m2: r.inertia_kg_m2,
                 slip_rate_rad_s: r.slip_rate_rad_s,
+                coefficient_table: None,
             }),
             tensioner: self.tensioner,
             mean_tension_n,

@@ -75,6 +75,7 @@ fn urdf_friction_is_the_joint_friction_effect_and_its_work_is_the_energy_lost() 
         coulomb_n_m: coulomb,
         viscous_n_m_s: 0.0,
         slip_rate_rad_s: BearingFriction::DEFAULT_SLIP_RATE_RAD_S,
+        coulomb_table: None,
     };
     let (lost, work, gap, q) = swing(&from_urdf, &law);
     eprintln!("energy lost {lost:.6e} J, friction work {work:.6e} J, worst step {gap:.2e} J");

@@ -285,6 +285,7 @@ fn energy_never_increases_with_relay_friction_and_falls_faster_than_without() {
         coefficient: 0.02,
         inertia_kg_m2: 1e-5,
         slip_rate_rad_s: RelayFriction::DEFAULT_SLIP_RATE_RAD_S,
+        coefficient_table: None,
     })));
     let rise = |e: &[f64]| e.windows(2).map(|w| w[1] - w[0]).fold(0.0f64, f64::max);
     let e0 = free[0];

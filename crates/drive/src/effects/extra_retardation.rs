@@ -2,7 +2,7 @@
 
 use longreach_rope::{KelvinElement, RopeLaw, MAX_KELVIN};
 
-use super::{check, DataKind, Effect, EffectParam, Site, Target};
+use super::{check, Args, DataKind, Effect, EffectParam, Site, Target};
 use crate::DriveError;
 
 /// Another spring || dashpot element in series (a second retardation time).
@@ -54,7 +54,8 @@ impl Effect for ExtraRetardation {
         let law = target.law;
         law.kelvin.len() >= 2
     }
-    fn on_law(&self, values: &[f64], law: &mut RopeLaw) -> Result<(), DriveError> {
+    fn on_law(&self, args: Args<'_>, law: &mut RopeLaw) -> Result<(), DriveError> {
+        let values = args.values;
         check(self, values)?;
         if law.kelvin.len() >= MAX_KELVIN {
             return Err(DriveError::BadParameter {

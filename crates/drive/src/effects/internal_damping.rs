@@ -2,7 +2,7 @@
 
 use longreach_rope::RopeLaw;
 
-use super::{check, DataKind, Effect, EffectParam, Site, Target};
+use super::{check, Args, DataKind, Effect, EffectParam, Site, Target};
 use crate::DriveError;
 
 /// A dashpot `c1` parallel to the head spring `k1`.
@@ -44,7 +44,8 @@ impl Effect for InternalDamping {
         let law = target.law;
         law.c1_n_s > 0.0
     }
-    fn on_law(&self, values: &[f64], law: &mut RopeLaw) -> Result<(), DriveError> {
+    fn on_law(&self, args: Args<'_>, law: &mut RopeLaw) -> Result<(), DriveError> {
+        let values = args.values;
         check(self, values)?;
         law.c1_n_s = values[0];
         Ok(law.validate()?)

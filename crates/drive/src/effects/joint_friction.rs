@@ -3,8 +3,12 @@
 
 use std::sync::Arc;
 
-use super::{check, Applied, DataKind, Effect, EffectParam, JointForce, JointTorque, Site, Target};
+use super::{
+    check, Applied, Args, Argument, DataKind, Effect, EffectParam, JointForce, JointTorque, Shape,
+    Site, Target,
+};
 use crate::DriveError;
+use longreach_rope::Table;
 
 /// Friction in the bearing of a joint: a Coulomb torque regularised over a slip rate,
 /// plus a viscous torque ([`BearingFriction`]).
@@ -68,12 +72,29 @@ impl Effect for JointFriction {
     fn present_in(&self, target: &Target<'_>) -> bool {
         target.holds_joint_effect(self)
     }
-    fn joint_force(&self, values: &[f64]) -> Result<Option<Arc<dyn JointForce>>, DriveError> {
+    fn shape(&self) -> Option<Shape> {
+        Some(Shape {
+            argument: Argument::JointRateRadS,
+            value: "coulomb_n_m",
+            unit: "N*m",
+            value_at_zero: None,
+            non_decreasing: false,
+            max_value: 1e3,
+            replaces: &["coulomb_n_m"],
+        })
+    }
+    fn curve(&self, values: &[f64], _rate_rad_s: f64) -> f64 {
+        values[0]
+    }
+    fn joint_force(&self, args: Args<'_>) -> Result<Option<Arc<dyn JointForce>>, DriveError> {
+        let values = args.values;
         check(self, values)?;
         Ok(Some(Arc::new(BearingFriction {
             coulomb_n_m: values[0],
             viscous_n_m_s: values[1],
             slip_rate_rad_s: values[2],
+            // Shape-free: the dry torque as a function of the speed (|rate|).
+            coulomb_table: args.table.copied(),
         })))
     }
 }
@@ -99,6 +120,9 @@ pub struct BearingFriction {
     pub viscous_n_m_s: f64,
     /// Rate over which the dry torque is regularised (tanh), rad/s.
     pub slip_rate_rad_s: f64,
+    /// Shape-free form: the dry torque as a function of the speed `|w|` (N*m), in place
+    /// of `coulomb_n_m` (a Stribeck curve, a drag that grows with speed).
+    pub coulomb_table: Option<Table>,
 }
 
 impl BearingFriction {
@@ -123,10 +147,16 @@ impl JointForce for BearingFriction {
         } else {
             x.tanh()
         };
+        // F(|w|) and dF/d|w|.
+        let (f, df) = match &self.coulomb_table {
+            None => (self.coulomb_n_m, 0.0),
+            Some(t) => t.eval_slope(rate_rad_s.abs()),
+        };
         JointTorque {
-            torque_n_m: -(self.coulomb_n_m * s + self.viscous_n_m_s * rate_rad_s),
+            torque_n_m: -(f * s + self.viscous_n_m_s * rate_rad_s),
             d_angle_n_m: 0.0,
-            d_rate_n_m_s: -(self.coulomb_n_m * (1.0 - s * s) / self.slip_rate_rad_s
+            d_rate_n_m_s: -(f * (1.0 - s * s) / self.slip_rate_rad_s
+                + df * rate_rad_s.signum() * s
                 + self.viscous_n_m_s),
         }
     }
@@ -142,6 +172,7 @@ mod tests {
             coulomb_n_m: 0.2,
             viscous_n_m_s: 0.01,
             slip_rate_rad_s: 1e-2,
+            coulomb_table: None,
         };
         let fast = f.torque(0.0, 3.0, &[]);
         assert!((fast.torque_n_m + 0.2 + 0.03).abs() < 1e-15);
@@ -153,8 +184,12 @@ mod tests {
         let an = f.torque(0.0, w, &[]).d_rate_n_m_s;
         assert!((fd - an).abs() < 1e-6 * an.abs(), "{fd} vs {an}");
         assert!(f.torque(0.0, 0.0, &[]).torque_n_m.abs() < 1e-300);
-        let e = JointFriction.joint_force(&[0.2, 0.01, 1e-2]).unwrap();
+        let e = JointFriction
+            .joint_force(Args::values(&[0.2, 0.01, 1e-2]))
+            .unwrap();
         assert!(e.is_some());
-        assert!(JointFriction.joint_force(&[-1.0, 0.01, 1e-2]).is_err());
+        assert!(JointFriction
+            .joint_force(Args::values(&[-1.0, 0.01, 1e-2]))
+            .is_err());
     }
 }

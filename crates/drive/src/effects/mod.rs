@@ -100,7 +100,7 @@ pub use sensor_delay::{Delay, SensorDelay};
 
 use std::sync::Arc;
 
-use longreach_rope::RopeLaw;
+use longreach_rope::{RopeLaw, Table};
 
 use crate::transmission::PairSpec;
 use crate::DriveError;
@@ -206,22 +206,101 @@ pub trait Effect: Sync + std::fmt::Debug {
     fn present_in(&self, _target: &Target<'_>) -> bool {
         false
     }
-    /// Rope-law site: adds the effect with parameter values `values` to a rope law.
-    fn on_law(&self, _values: &[f64], _law: &mut RopeLaw) -> Result<(), DriveError> {
+    /// The function of one variable at the heart of the effect, when it has one: what
+    /// its shape-free form tabulates ([`Shape`]). `None`: the effect has no such form.
+    fn shape(&self) -> Option<Shape> {
+        None
+    }
+    /// The parametric law's function (the one [`Self::shape`] describes) at parameter
+    /// values `values` and argument `x`: the shape-free fit starts from it, reports plot
+    /// it against the fitted table.
+    fn curve(&self, _values: &[f64], _x: f64) -> f64 {
+        f64::NAN
+    }
+    /// Rope-law site: adds the effect with parameter values (and shape-free law) `args`
+    /// to a rope law.
+    fn on_law(&self, _args: Args<'_>, _law: &mut RopeLaw) -> Result<(), DriveError> {
         Ok(())
     }
     /// Span, relay-pulley or motor site: adds the effect to a rope pair's spec.
-    fn on_pair(&self, _values: &[f64], _pair: &mut PairSpec) -> Result<(), DriveError> {
+    fn on_pair(&self, _args: Args<'_>, _pair: &mut PairSpec) -> Result<(), DriveError> {
         Ok(())
     }
     /// Joint site: the passive torque the effect adds at a joint (`None`: none).
-    fn joint_force(&self, _values: &[f64]) -> Result<Option<Arc<dyn JointForce>>, DriveError> {
+    fn joint_force(&self, _args: Args<'_>) -> Result<Option<Arc<dyn JointForce>>, DriveError> {
         Ok(None)
     }
     /// Sensor site: how the effect changes what a sensor reports (`None`: it does not).
-    fn sensor(&self, _values: &[f64]) -> Result<Option<Arc<dyn SensorModel>>, DriveError> {
+    fn sensor(&self, _args: Args<'_>) -> Result<Option<Arc<dyn SensorModel>>, DriveError> {
         Ok(None)
     }
+}
+
+/// What an effect's hooks receive: its parameter values, and, for its shape-free form,
+/// the table of its function ([`Effect::shape`]) that replaces the parameters
+/// [`Shape::replaces`] names.
+#[derive(Debug, Clone, Copy)]
+pub struct Args<'a> {
+    /// One value per parameter ([`Effect::params`]).
+    pub values: &'a [f64],
+    /// The shape-free law, when the effect is used in that form.
+    pub table: Option<&'a Table>,
+}
+
+impl<'a> Args<'a> {
+    /// The parametric form with `values`.
+    pub fn values(values: &'a [f64]) -> Self {
+        Self {
+            values,
+            table: None,
+        }
+    }
+}
+
+/// Which quantity of a plant an effect's function takes (where the shape-free table's
+/// knots are placed: over the range the data visits).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Argument {
+    /// The tension of a rope (or span), N.
+    TensionN,
+    /// The hub load of a relay pulley (the sum of the tensions on either side), N.
+    HubLoadN,
+    /// The rate of a joint (its absolute value), rad/s.
+    JointRateRadS,
+}
+
+impl Argument {
+    /// Name and unit, as in model files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::TensionN => "tension_n",
+            Self::HubLoadN => "hub_load_n",
+            Self::JointRateRadS => "rate_rad_s",
+        }
+    }
+}
+
+/// The function of one variable at the heart of an effect, for its shape-free form: a
+/// table of values at knots over the range the data visits, fitted in place of the
+/// parametric law ([`Effect::curve`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Shape {
+    /// What the function takes.
+    pub argument: Argument,
+    /// What it gives (a name for reports and model files) and its unit.
+    pub value: &'static str,
+    /// Unit of the value.
+    pub unit: &'static str,
+    /// The value at argument 0 when it is fixed (a scale held by another parameter),
+    /// `None` when it is fitted.
+    pub value_at_zero: Option<f64>,
+    /// The values never fall from knot to knot (a stiffening, a creep that speeds up
+    /// with load); otherwise only positive.
+    pub non_decreasing: bool,
+    /// Largest value a knot may take.
+    pub max_value: f64,
+    /// The parameters the table replaces (held at their values, not fitted).
+    pub replaces: &'static [&'static str],
 }
 
 /// What a sensor-site effect does to a measured channel: the plant simulates the true
@@ -294,21 +373,45 @@ pub fn check(effect: &dyn Effect, values: &[f64]) -> Result<(), DriveError> {
     Ok(())
 }
 
-/// An effect with its parameter values (checked), as a plant applies it when it is
-/// built.
+/// An effect with its parameter values (checked), and its shape-free law when used in
+/// that form, as a plant applies it when it is built.
 #[derive(Debug, Clone)]
 pub struct Applied {
     /// The registered effect.
     pub effect: &'static dyn Effect,
     /// One value per parameter, within bounds.
     pub values: Vec<f64>,
+    /// The shape-free law ([`Effect::shape`]), replacing the parametric function.
+    pub table: Option<Table>,
 }
 
 impl Applied {
     /// Checks `values` against the effect's parameters.
     pub fn new(effect: &'static dyn Effect, values: Vec<f64>) -> Result<Self, DriveError> {
         check(effect, &values)?;
-        Ok(Self { effect, values })
+        Ok(Self {
+            effect,
+            values,
+            table: None,
+        })
+    }
+
+    /// [`Self::new`] in the shape-free form `table` (checked against the effect's
+    /// [`Shape`]).
+    pub fn shaped(
+        effect: &'static dyn Effect,
+        values: Vec<f64>,
+        table: Table,
+    ) -> Result<Self, DriveError> {
+        let shape = effect.shape().ok_or_else(|| DriveError::BadParameter {
+            field: format!("{}.shape", effect.name()),
+            value: f64::NAN,
+            reason: "this effect has no shape-free form".into(),
+        })?;
+        check_table(effect.name(), &shape, &table)?;
+        let mut a = Self::new(effect, values)?;
+        a.table = Some(table);
+        Ok(a)
     }
 
     /// The effect at its default parameters.
@@ -316,31 +419,76 @@ impl Applied {
         Self {
             effect,
             values: effect.params().iter().map(|p| p.default).collect(),
+            table: None,
+        }
+    }
+
+    /// What the hooks receive.
+    pub fn args(&self) -> Args<'_> {
+        Args {
+            values: &self.values,
+            table: self.table.as_ref(),
         }
     }
 
     /// Applies the rope-law and pair hooks to a rope pair.
     pub fn apply_to_pair(&self, pair: &mut PairSpec) -> Result<(), DriveError> {
-        self.effect.on_law(&self.values, &mut pair.law)?;
-        self.effect.on_pair(&self.values, pair)?;
+        self.effect.on_law(self.args(), &mut pair.law)?;
+        self.effect.on_pair(self.args(), pair)?;
         pair.law.validate()?;
         Ok(())
     }
 
     /// Applies the rope-law hook to a rope law alone (a specimen).
     pub fn apply_to_law(&self, law: &mut RopeLaw) -> Result<(), DriveError> {
-        self.effect.on_law(&self.values, law)?;
+        self.effect.on_law(self.args(), law)?;
         law.validate()?;
         Ok(())
     }
 
     /// The passive torque the effect adds at a joint, if any.
     pub fn joint_force(&self) -> Result<Option<Arc<dyn JointForce>>, DriveError> {
-        self.effect.joint_force(&self.values)
+        self.effect.joint_force(self.args())
     }
 
     /// What the effect does to a sensor, if anything.
     pub fn sensor(&self) -> Result<Option<Arc<dyn SensorModel>>, DriveError> {
-        self.effect.sensor(&self.values)
+        self.effect.sensor(self.args())
     }
+}
+
+/// Checks a shape-free table against the effect's [`Shape`]: positive values, within
+/// the largest, never falling when the shape says so, the value at 0 when it is fixed.
+pub fn check_table(effect: &str, shape: &Shape, table: &Table) -> Result<(), DriveError> {
+    let bad = |reason: String, value: f64| DriveError::BadParameter {
+        field: format!("{effect}.shape.{}", shape.value),
+        value,
+        reason,
+    };
+    for &v in table.y() {
+        if !(v > 0.0 && v <= shape.max_value) {
+            return Err(bad(
+                format!(
+                    "every value must lie in (0, {}] {}",
+                    shape.max_value, shape.unit
+                ),
+                v,
+            ));
+        }
+    }
+    if shape.non_decreasing && !table.non_decreasing() {
+        return Err(bad(
+            "the values must not fall from knot to knot".into(),
+            f64::NAN,
+        ));
+    }
+    if let Some(v0) = shape.value_at_zero {
+        if (table.y()[0] - v0).abs() > 1e-12 * v0.abs().max(1.0) {
+            return Err(bad(
+                format!("the value at 0 is fixed at {v0}"),
+                table.y()[0],
+            ));
+        }
+    }
+    Ok(())
 }

@@ -2,7 +2,7 @@
 
 use longreach_rope::{NonlinearCreep, RopeLaw};
 
-use super::{check, DataKind, Effect, EffectParam, Site, Target};
+use super::{check, Args, Argument, DataKind, Effect, EffectParam, Shape, Site, Target};
 use crate::DriveError;
 
 /// The creep dashpot c2 flows faster under high tension.
@@ -53,14 +53,38 @@ impl Effect for NonlinearCreepEffect {
     }
     fn present_in(&self, target: &Target<'_>) -> bool {
         let law = target.law;
-        law.creep.is_some() || law.c2_n_s.is_none()
+        law.creeps_nonlinearly() || law.c2_n_s.is_none()
     }
-    fn on_law(&self, values: &[f64], law: &mut RopeLaw) -> Result<(), DriveError> {
+    fn shape(&self) -> Option<Shape> {
+        Some(Shape {
+            argument: Argument::TensionN,
+            value: "creep_factor",
+            unit: "1",
+            value_at_zero: Some(1.0),
+            non_decreasing: true,
+            max_value: 1e6,
+            replaces: &["tension_n", "exponent"],
+        })
+    }
+    fn curve(&self, values: &[f64], tension_n: f64) -> f64 {
+        1.0 + (tension_n.max(0.0) / values[0]).powf(values[1])
+    }
+    fn on_law(&self, args: Args<'_>, law: &mut RopeLaw) -> Result<(), DriveError> {
+        let values = args.values;
         check(self, values)?;
-        law.creep = Some(NonlinearCreep {
-            tension_n: values[0],
-            exponent: values[1],
-        });
+        match args.table {
+            // Shape-free: the creep rate is f / c2 h(f), h the table.
+            Some(t) => {
+                law.creep = None;
+                law.creep_table = Some(*t);
+            }
+            None => {
+                law.creep = Some(NonlinearCreep {
+                    tension_n: values[0],
+                    exponent: values[1],
+                })
+            }
+        }
         Ok(law.validate()?)
     }
 }

@@ -2,7 +2,7 @@
 
 use longreach_rope::RopeLaw;
 
-use super::{check, DataKind, Effect, EffectParam, Site, Target};
+use super::{check, Args, Argument, DataKind, Effect, EffectParam, Shape, Site, Target};
 use crate::DriveError;
 
 /// Rope stiffness that rises with tension: the head spring's tangent stiffness is
@@ -41,12 +41,33 @@ impl Effect for NonlinearStiffness {
         Site::RopeLaw
     }
     fn present_in(&self, target: &Target<'_>) -> bool {
-        let law = target.law;
-        law.stiffening_per_n > 0.0
+        target.law.stiffens()
     }
-    fn on_law(&self, values: &[f64], law: &mut RopeLaw) -> Result<(), DriveError> {
+    fn shape(&self) -> Option<Shape> {
+        Some(Shape {
+            argument: Argument::TensionN,
+            value: "stiffness_factor",
+            unit: "1",
+            value_at_zero: Some(1.0),
+            non_decreasing: true,
+            max_value: 100.0,
+            replaces: &["stiffening_per_n"],
+        })
+    }
+    fn curve(&self, values: &[f64], tension_n: f64) -> f64 {
+        1.0 + values[0] * tension_n.max(0.0)
+    }
+    fn on_law(&self, args: Args<'_>, law: &mut RopeLaw) -> Result<(), DriveError> {
+        let values = args.values;
         check(self, values)?;
-        law.stiffening_per_n = values[0];
+        match args.table {
+            // Shape-free: the head spring's tangent stiffness is k1 g(f), g the table.
+            Some(t) => {
+                law.stiffening_per_n = 0.0;
+                law.stiffness_table = Some(*t);
+            }
+            None => law.stiffening_per_n = values[0],
+        }
         Ok(law.validate()?)
     }
 }

@@ -2,7 +2,7 @@
 
 use longreach_rope::RopeLaw;
 
-use super::{check, DataKind, Effect, EffectParam, Site, Target};
+use super::{check, Args, DataKind, Effect, EffectParam, Site, Target};
 use crate::DriveError;
 
 /// The ratchet || kp element of Flory's model (Fig. 2, eqs. 1-2).
@@ -46,7 +46,8 @@ impl Effect for PlasticRatchet {
         let law = target.law;
         law.kp_n.is_some()
     }
-    fn on_law(&self, values: &[f64], law: &mut RopeLaw) -> Result<(), DriveError> {
+    fn on_law(&self, args: Args<'_>, law: &mut RopeLaw) -> Result<(), DriveError> {
+        let values = args.values;
         check(self, values)?;
         law.kp_n = Some(values[0]);
         Ok(law.validate()?)

@@ -1,6 +1,6 @@
 //! Load-dependent friction and inertia at the relay pulleys.
 
-use super::{check, DataKind, Effect, EffectParam, Site, Target};
+use super::{check, Args, Argument, DataKind, Effect, EffectParam, Shape, Site, Target};
 use crate::transmission::PairSpec;
 use crate::{DriveError, RelayFriction};
 
@@ -62,7 +62,22 @@ impl Effect for RelayFrictionEffect {
             .pair
             .is_some_and(|p| p.relay_friction.is_some_and(|f| f.coefficient > 0.0))
     }
-    fn on_pair(&self, values: &[f64], pair: &mut PairSpec) -> Result<(), DriveError> {
+    fn shape(&self) -> Option<Shape> {
+        Some(Shape {
+            argument: Argument::HubLoadN,
+            value: "coefficient",
+            unit: "1",
+            value_at_zero: None,
+            non_decreasing: false,
+            max_value: 0.5,
+            replaces: &["coefficient"],
+        })
+    }
+    fn curve(&self, values: &[f64], _hub_load_n: f64) -> f64 {
+        values[0]
+    }
+    fn on_pair(&self, args: Args<'_>, pair: &mut PairSpec) -> Result<(), DriveError> {
+        let values = args.values;
         check(self, values)?;
         let friction = RelayFriction {
             coefficient: values[0],
@@ -72,6 +87,8 @@ impl Effect for RelayFrictionEffect {
                 .map_or(RelayFriction::DEFAULT_SLIP_RATE_RAD_S, |f| {
                     f.slip_rate_rad_s
                 }),
+            // Shape-free: the coefficient as a function of the hub load.
+            coefficient_table: args.table.copied(),
         };
         friction.validate()?;
         pair.relay_friction = Some(friction);

@@ -2,7 +2,7 @@
 
 use std::sync::Arc;
 
-use super::{check, DataKind, Effect, EffectParam, SensorModel, Site, Target};
+use super::{check, Args, DataKind, Effect, EffectParam, SensorModel, Site, Target};
 use crate::DriveError;
 
 /// The output encoder's reading lags the pulley by a constant time (the encoder's
@@ -44,7 +44,8 @@ impl Effect for SensorDelay {
     fn present_in(&self, _target: &Target<'_>) -> bool {
         false
     }
-    fn sensor(&self, values: &[f64]) -> Result<Option<Arc<dyn SensorModel>>, DriveError> {
+    fn sensor(&self, args: Args<'_>) -> Result<Option<Arc<dyn SensorModel>>, DriveError> {
+        let values = args.values;
         check(self, values)?;
         Ok(Some(Arc::new(Delay {
             channel: "output_angle_rad",
@@ -131,6 +132,6 @@ mod tests {
         // Linear interpolation of a 2 Hz sine sampled at 1 kHz: error below w^2 dt^2 / 8.
         assert!(worst < w * w * 1e-6 / 8.0 * 1.01, "{worst}");
         assert!(d.acts_on("output_angle_rad") && !d.acts_on("tension_in_1_n"));
-        assert!(SensorDelay.sensor(&[0.5]).is_err());
+        assert!(SensorDelay.sensor(Args::values(&[0.5])).is_err());
     }
 }

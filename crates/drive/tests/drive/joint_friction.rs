@@ -37,6 +37,7 @@ fn friction_work_equals_the_energy_lost_and_peaks_fall_by_coulombs_decrement() {
         coulomb_n_m: coulomb,
         viscous_n_m_s: viscous,
         slip_rate_rad_s: BearingFriction::DEFAULT_SLIP_RATE_RAD_S,
+        coulomb_table: None,
     };
     let dt = 5e-4;
     let model = RigModel::with_effects(s.clone(), &[applied], dt).unwrap();

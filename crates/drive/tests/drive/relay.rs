@@ -24,6 +24,7 @@ fn friction(coefficient: f64, inertia_kg_m2: f64) -> Option<RelayFriction> {
         coefficient,
         inertia_kg_m2,
         slip_rate_rad_s: RelayFriction::DEFAULT_SLIP_RATE_RAD_S,
+        coefficient_table: None,
     })
 }
 
@@ -240,6 +241,7 @@ fn bad_relay_values_name_the_field() {
                 coefficient: 0.01,
                 inertia_kg_m2: 2e-5,
                 slip_rate_rad_s: 0.0,
+                coefficient_table: None,
             }),
             3,
             "relay_friction.slip_rate_rad_s",

@@ -17,6 +17,7 @@
 //! `inertia_kg_m2 = 0` the pulley is ideal. The rope on either side of a relay pulley
 //! is a separate span with its own rope state: that is what lets the tensions differ.
 
+use longreach_rope::Table;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{non_negative, positive, DriveError};
@@ -31,6 +32,10 @@ pub struct RelayFriction {
     pub inertia_kg_m2: f64,
     /// Rotation rate over which Coulomb friction is regularised (tanh) [rad/s].
     pub slip_rate_rad_s: f64,
+    /// Shape-free form: the coefficient as a function of the hub load (N), replacing
+    /// `coefficient` (friction that grows or falls with the load, unlike Coulomb's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coefficient_table: Option<Table>,
 }
 
 impl RelayFriction {
@@ -48,8 +53,21 @@ impl RelayFriction {
                 reason: "must be < 1 (the pulley would lock; typical bearings 0.001-0.05)".into(),
             });
         }
+        if let Some(t) = &self.coefficient_table {
+            if t.y().iter().any(|v| !(*v >= 0.0 && *v < 1.0)) {
+                return Err(DriveError::BadParameter {
+                    field: "relay_friction.coefficient_table".into(),
+                    value: t.y().iter().copied().fold(f64::NAN, f64::max),
+                    reason: "every coefficient must lie in [0, 1)".into(),
+                });
+            }
+        }
         let j = non_negative("relay_friction.inertia_kg_m2", self.inertia_kg_m2)?;
-        if c > 0.0 && j == 0.0 {
+        let rubs = c > 0.0
+            || self
+                .coefficient_table
+                .is_some_and(|t| t.y().iter().any(|v| *v > 0.0));
+        if rubs && j == 0.0 {
             return Err(DriveError::BadParameter {
                 field: "relay_friction.inertia_kg_m2".into(),
                 value: j,
@@ -76,10 +94,18 @@ impl RelayFriction {
         } else {
             x.tanh()
         };
-        let scale = self.coefficient * radius_m;
+        let (c, dc) = match &self.coefficient_table {
+            None => (self.coefficient, 0.0),
+            Some(t) => t.eval_slope(tension_sum_n),
+        };
+        let scale = c * radius_m;
         RelayTorque {
             torque_n_m: scale * tension_sum_n * s,
-            d_tension_sum_m: scale * s,
+            d_tension_sum_m: if dc == 0.0 {
+                scale * s
+            } else {
+                (c + tension_sum_n * dc) * radius_m * s
+            },
             d_rate_n_m_s: scale * tension_sum_n * (1.0 - s * s) / self.slip_rate_rad_s,
         }
     }
@@ -110,6 +136,7 @@ mod tests {
             coefficient: 0.02,
             inertia_kg_m2: 1e-5,
             slip_rate_rad_s: RelayFriction::DEFAULT_SLIP_RATE_RAD_S,
+            coefficient_table: None,
         }
     }
 
