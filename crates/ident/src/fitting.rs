@@ -260,6 +260,18 @@ pub struct FitResult {
     pub termination: String,
 }
 
+/// `v` moved strictly inside `[lower, upper]` (by a millionth of the span, or of `v`'s
+/// size when a bound is infinite), as a fit's start must be.
+pub fn strictly_inside(v: f64, lower: f64, upper: f64) -> f64 {
+    let span = upper - lower;
+    let eps = if span.is_finite() {
+        1e-6 * span
+    } else {
+        1e-6 * v.abs().max(1e-3)
+    };
+    v.clamp(lower + eps, (upper - eps).max(lower + eps))
+}
+
 impl FitResult {
     /// RMS of the residuals at the optimum, `sqrt(SSR / n)` (eq. 7 of the paper for
     /// tension residuals).

@@ -2,9 +2,9 @@
 //! per run) and a list of effects from the registry ([`longreach_drive::effects`]),
 //! read from and written to TOML model files (format: `docs/models.md`).
 
-use longreach_drive::effects::{self, Applied, DataKind, Effect, Site, Target};
+use longreach_drive::effects::{self, check_table, Applied, DataKind, Effect, Shape, Site, Target};
 use longreach_drive::DriveError;
-use longreach_rope::{Catalog, LawKind, RopeError, RopeLaw, RopeParams};
+use longreach_rope::{Catalog, LawKind, RopeError, RopeLaw, RopeParams, Table};
 use longreach_scenario::spec::field_error;
 use longreach_scenario::ScenarioError;
 use serde::Serialize;
@@ -47,6 +47,8 @@ pub enum Role {
     /// A parameter of the model's effect that owns it (by position).
     #[default]
     Effect,
+    /// A quantity of an effect's shape-free table ([`ShapeUse`]).
+    Shape,
 }
 
 /// The base parameters a model may set, by what they set.
@@ -188,6 +190,138 @@ pub struct EffectUse {
     pub effect: &'static dyn Effect,
     /// Its parameters, in the effect's order.
     pub params: Vec<ParamDef>,
+    /// Its shape-free form, when the model holds the effect's law as a table
+    /// ([`longreach_drive::effects::Shape`]); the parameters it replaces are held.
+    pub shape: Option<ShapeUse>,
+}
+
+/// The shape-free form of an effect in a model: the table's knots (fixed: placed over
+/// the range the data visits) and its values, fitted through [`Self::params`] (one per
+/// knot, the first only when the shape does not fix it; for a law that never falls,
+/// the rise from the previous knot, >= 0).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ShapeUse {
+    /// The effect's shape.
+    pub shape: Shape,
+    /// Knots, increasing from 0, in the unit of the shape's argument.
+    pub knots: Vec<f64>,
+    /// The fitted quantities (see above), as model parameters.
+    pub params: Vec<ParamDef>,
+}
+
+impl ShapeUse {
+    /// The shape-free form of `shape` with `values` at `knots` (every parameter fitted
+    /// when `fit`), checked against the shape.
+    pub fn new(
+        effect: &dyn Effect,
+        shape: Shape,
+        knots: &[f64],
+        values: &[f64],
+        fit: bool,
+    ) -> Result<Self, ModelError> {
+        let table = Table::new(knots, values).map_err(|source| ModelError::Effect {
+            effect: effect.name(),
+            source: source.into(),
+        })?;
+        check_table(effect.name(), &shape, &table).map_err(|source| ModelError::Effect {
+            effect: effect.name(),
+            source,
+        })?;
+        let arg = shape.argument.name();
+        let mut params = Vec::new();
+        // A value is positive (log scale).
+        let def = |name: String, value: f64, lower: f64, log_scale: bool| ParamDef {
+            name,
+            unit: shape.unit.into(),
+            value,
+            run_values: None,
+            lower,
+            upper: shape.max_value,
+            log_scale,
+            fit,
+            per_run: false,
+            role: Role::Shape,
+        };
+        if shape.value_at_zero.is_none() {
+            params.push(def(
+                format!("{}@{arg}=0", shape.value),
+                values[0],
+                shape.max_value * 1e-9,
+                true,
+            ));
+        }
+        for i in 1..knots.len() {
+            params.push(if shape.non_decreasing {
+                // a rise may be 0 (a flat stretch): a linear scale (on a log scale a
+                // rise near 0 would freeze there)
+                def(
+                    format!("{}_rise@{arg}={}", shape.value, knots[i]),
+                    (values[i] - values[i - 1]).max(0.0),
+                    0.0,
+                    false,
+                )
+            } else {
+                def(
+                    format!("{}@{arg}={}", shape.value, knots[i]),
+                    values[i],
+                    shape.max_value * 1e-9,
+                    true,
+                )
+            });
+        }
+        Ok(Self {
+            shape,
+            knots: knots.to_vec(),
+            params,
+        })
+    }
+
+    /// The table's values for run `run` (knot by knot): the first (fixed or fitted),
+    /// then each knot's value, or for a law that never falls the previous one plus its
+    /// rise.
+    pub fn values_for(&self, run: usize) -> Vec<f64> {
+        let mut y = Vec::with_capacity(self.knots.len());
+        let mut p = self.params.iter();
+        let first = match self.shape.value_at_zero {
+            Some(v) => v,
+            None => p.next().map_or(f64::NAN, |d| d.value_for(run)),
+        };
+        y.push(first);
+        for d in p {
+            let v = d.value_for(run);
+            let last = *y.last().unwrap_or(&first);
+            y.push(if self.shape.non_decreasing {
+                last + v
+            } else {
+                v
+            });
+        }
+        y
+    }
+
+    /// The table for run `run`.
+    pub fn table_for(&self, run: usize) -> Result<Table, RopeError> {
+        Table::new(&self.knots, &self.values_for(run))
+    }
+
+    /// The `[effect.shape]` table of a model file: the knots under the argument's name,
+    /// the values under the value's name, and whether they are fitted.
+    pub fn to_toml(&self) -> String {
+        let list = |v: &[f64]| {
+            v.iter()
+                .map(|x| format!("{x:e}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        format!(
+            "\n[effect.shape]\n{} = [{}]\n{} = [{}]\nfit = {}\n",
+            self.shape.argument.name(),
+            list(&self.knots),
+            self.shape.value,
+            list(&self.values_for(0)),
+            self.params.iter().any(|p| p.fit)
+        )
+    }
 }
 
 /// A model of a dataset: rope law, base parameters, effects.
@@ -291,6 +425,14 @@ impl Model {
                     .iter()
                     .enumerate()
                     .map(move |(j, p)| (Owner::Effect(e), j, p))
+            }))
+            .chain(self.effects.iter().enumerate().flat_map(|(e, u)| {
+                u.shape.iter().flat_map(move |sh| {
+                    sh.params
+                        .iter()
+                        .enumerate()
+                        .map(move |(j, p)| (Owner::Shape(e), j, p))
+                })
             }));
         for (owner, j, p) in all {
             if !p.fit {
@@ -315,10 +457,15 @@ impl Model {
         out
     }
 
-    fn param(&self, s: &Slot) -> &ParamDef {
+    /// The parameter in slot `s`.
+    pub fn param(&self, s: &Slot) -> &ParamDef {
         match s.owner {
             Owner::Base => &self.base[s.index],
             Owner::Effect(e) => &self.effects[e].params[s.index],
+            Owner::Shape(e) => match &self.effects[e].shape {
+                Some(sh) => &sh.params[s.index],
+                None => &self.effects[e].params[s.index],
+            },
         }
     }
 
@@ -326,6 +473,13 @@ impl Model {
         match s.owner {
             Owner::Base => &mut self.base[s.index],
             Owner::Effect(e) => &mut self.effects[e].params[s.index],
+            Owner::Shape(e) => {
+                let u = &mut self.effects[e];
+                match u.shape.as_mut() {
+                    Some(sh) => &mut sh.params[s.index],
+                    None => &mut u.params[s.index],
+                }
+            }
         }
     }
 
@@ -340,8 +494,7 @@ impl Model {
                     None => p.name.clone(),
                 };
                 let v0 = s.run.map_or(p.value, |r| p.value_for(r));
-                let span = p.upper - p.lower;
-                let init = v0.clamp(p.lower + 1e-6 * span, p.upper - 1e-6 * span);
+                let init = crate::fitting::strictly_inside(v0, p.lower, p.upper);
                 ParamSpec {
                     name,
                     unit: p.unit.clone(),
@@ -389,7 +542,14 @@ impl Model {
         }
         for u in &self.effects {
             let vals: Vec<f64> = u.params.iter().map(|q| q.value_for(run)).collect();
-            let applied = Applied::new(u.effect, vals).map_err(|source| ModelError::Effect {
+            let applied = match &u.shape {
+                None => Applied::new(u.effect, vals),
+                Some(sh) => {
+                    let table = sh.table_for(run)?;
+                    Applied::shaped(u.effect, vals, table)
+                }
+            }
+            .map_err(|source| ModelError::Effect {
                 effect: u.effect.name(),
                 source,
             })?;
@@ -436,7 +596,23 @@ impl Model {
                     role: Role::Effect,
                 })
                 .collect(),
+            shape: None,
         });
+        m
+    }
+
+    /// The model with effect number `e` in its shape-free form `shape` (the parameters
+    /// the table replaces held, not fitted).
+    pub fn with_shape(&self, e: usize, shape: ShapeUse) -> Model {
+        let mut m = self.clone();
+        let u = &mut m.effects[e];
+        for p in u.params.iter_mut() {
+            if shape.shape.replaces.contains(&p.name.as_str()) {
+                p.fit = false;
+                p.run_values = None;
+            }
+        }
+        u.shape = Some(shape);
         m
     }
 
@@ -458,7 +634,12 @@ impl Model {
         let all = self
             .base
             .iter()
-            .chain(self.effects.iter().flat_map(|u| u.params.iter()));
+            .chain(self.effects.iter().flat_map(|u| u.params.iter()))
+            .chain(
+                self.effects
+                    .iter()
+                    .flat_map(|u| u.shape.iter().flat_map(|sh| sh.params.iter())),
+            );
         for p in all {
             match &p.run_values {
                 Some(v) if p.per_run => {
@@ -547,6 +728,9 @@ impl Model {
             s.push_str(&format!("\n[[effect]]\nname = \"{}\"\n", u.effect.name()));
             for p in &u.params {
                 param(&mut s, "effect.params", p);
+            }
+            if let Some(sh) = &u.shape {
+                s.push_str(&sh.to_toml());
             }
         }
         s
@@ -745,7 +929,23 @@ impl Model {
                     };
                     ps.push(p);
                 }
-                effects_out.push(EffectUse { effect, params: ps });
+                let shape = parse_shape(text, file, &path, effect, t)?;
+                effects_out.push(EffectUse {
+                    effect,
+                    params: ps,
+                    shape: None,
+                });
+                if let Some(sh) = shape {
+                    let last = effects_out.len() - 1;
+                    let m = Model {
+                        rope: String::new(),
+                        law_kind,
+                        law: law.clone(),
+                        base: Vec::new(),
+                        effects: std::mem::take(&mut effects_out),
+                    };
+                    effects_out = m.with_shape(last, sh).effects;
+                }
             }
         }
         let m = Model {
@@ -759,6 +959,98 @@ impl Model {
             .map_err(|e| err("effect", e.to_string(), "correct the parameter values"))?;
         Ok(m)
     }
+}
+
+/// The `[effect.shape]` table of effect `effect` at `path` in a model file, if any
+/// (format: [`ShapeUse::to_toml`]).
+fn parse_shape(
+    text: &str,
+    file: &str,
+    path: &str,
+    effect: &'static dyn Effect,
+    t: &toml::Table,
+) -> Result<Option<ShapeUse>, ModelError> {
+    let Some(v) = t.get("shape") else {
+        return Ok(None);
+    };
+    let field = format!("{path}.shape");
+    let err = |field: &str, msg: String, fix: String| {
+        ModelError::File(field_error(text, file, field, msg, &fix))
+    };
+    let Some(shape) = effect.shape() else {
+        let with: Vec<&str> = effects::REGISTRY
+            .iter()
+            .filter(|e| e.shape().is_some())
+            .map(|e| e.name())
+            .collect();
+        return Err(err(
+            &field,
+            format!("effect `{}` has no shape-free form", effect.name()),
+            format!(
+                "remove [effect.shape]; effects with one: {}",
+                with.join(", ")
+            ),
+        ));
+    };
+    let (arg, val) = (shape.argument.name(), shape.value);
+    let example = format!(
+        "write [effect.shape] with {arg} = [0, ...] (knots from 0, increasing, 2 to {} of them), {val} = [...] (one value per knot) and fit = true or false",
+        longreach_rope::MAX_KNOTS
+    );
+    let st = v
+        .as_table()
+        .ok_or_else(|| err(&field, "must be a table".into(), example.clone()))?;
+    for k in st.keys() {
+        if ![arg, val, "fit"].contains(&k.as_str()) {
+            return Err(err(
+                &format!("{field}.{k}"),
+                format!("unknown key `{k}`"),
+                example.clone(),
+            ));
+        }
+    }
+    let list = |key: &str| -> Result<Vec<f64>, ModelError> {
+        let f = format!("{field}.{key}");
+        let a = st
+            .get(key)
+            .and_then(|v| v.as_array())
+            .ok_or_else(|| err(&f, format!("needs {key} = [numbers]"), example.clone()))?;
+        a.iter()
+            .map(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
+            .collect::<Option<Vec<f64>>>()
+            .ok_or_else(|| err(&f, "must be a list of numbers".into(), example.clone()))
+    };
+    let knots = list(arg)?;
+    let values = list(val)?;
+    if knots.len() != values.len() {
+        return Err(err(
+            &format!("{field}.{val}"),
+            format!("{} values for {} knots", values.len(), knots.len()),
+            "give one value per knot".into(),
+        ));
+    }
+    if let (Some(z), Some(&y0)) = (shape.value_at_zero, values.first()) {
+        if (y0 - z).abs() > 1e-9 * z.abs().max(1.0) {
+            return Err(err(
+                &format!("{field}.{val}"),
+                format!("the first value is {y0}, but this shape is {z} at {arg} = 0"),
+                format!("start the values with {z} (another parameter holds the scale)"),
+            ));
+        }
+    }
+    let fit = match st.get("fit") {
+        None => false,
+        Some(v) => v.as_bool().ok_or_else(|| {
+            err(
+                &format!("{field}.fit"),
+                "must be true or false".into(),
+                example.clone(),
+            )
+        })?,
+    };
+    ShapeUse::new(effect, shape, &knots, &values, fit)
+        .map(Some)
+        .map_err(|e| err(&field, e.to_string(), example))
 }
 
 /// The four constants of the law (or k1 alone), fitted on a log scale within a decade.
@@ -868,6 +1160,8 @@ pub enum Owner {
     Base,
     /// The parameters of effect number `n`.
     Effect(usize),
+    /// The shape-free table of effect number `n`.
+    Shape(usize),
 }
 
 /// One fitted value: parameter `index` of `owner`, for run `run` (per-run) or all runs.

@@ -12,7 +12,7 @@
 //! [`plant_for`] picks the plant of a dataset. The arm (`arm_moves`) gets its plant
 //! with the arm's measurement loop.
 
-use longreach_drive::effects::DataKind;
+use longreach_drive::effects::{Argument, DataKind};
 use longreach_drive::{rig_transfer, RigSpec as DriveRig};
 use num_complex::Complex64;
 
@@ -82,6 +82,19 @@ pub trait Plant: Send + Sync + std::fmt::Debug {
     ) -> Option<Complex64> {
         None
     }
+
+    /// The values the argument `arg` of an effect's shape ([`longreach_drive::effects::Shape`])
+    /// takes over run `run` simulated with `params`: where the data can inform a
+    /// shape-free law (its knots are placed over them). Empty when the plant has no such
+    /// quantity.
+    fn argument_samples(
+        &self,
+        _params: &PlantParams,
+        _run: usize,
+        _arg: Argument,
+    ) -> Result<Vec<f64>, IdentError> {
+        Ok(Vec::new())
+    }
 }
 
 /// The plant of a dataset, its sweeps simulated at the sample period over `substeps`.
@@ -104,6 +117,21 @@ pub struct RigPlant<'a> {
 }
 
 impl RigPlant<'_> {
+    fn sweep_sim(&self, params: &PlantParams, run: usize) -> Result<sim::SimSweep, IdentError> {
+        let r = &self.sweep.runs[run];
+        sim::simulate_sweep(
+            self.rig(params, run),
+            &params.effects,
+            sim::drive_input(r),
+            r.dt_s(),
+            self.substeps,
+        )
+        .map_err(|source| IdentError::Simulation {
+            run: r.name.clone(),
+            source,
+        })
+    }
+
     fn rig(&self, params: &PlantParams, run: usize) -> DriveRig {
         let mut spec = sim::drive_rig(
             &self.sweep.rig,
@@ -128,17 +156,7 @@ impl Plant for RigPlant<'_> {
 
     fn simulate(&self, params: &PlantParams, run: usize) -> Result<Channels, IdentError> {
         let r = &self.sweep.runs[run];
-        let s = sim::simulate_sweep(
-            self.rig(params, run),
-            &params.effects,
-            sim::drive_input(r),
-            r.dt_s(),
-            self.substeps,
-        )
-        .map_err(|source| IdentError::Simulation {
-            run: r.name.clone(),
-            source,
-        })?;
+        let s = self.sweep_sim(params, run)?;
         let mut out = vec![Channel {
             name: "output_angle_rad",
             values: s.output_rad,
@@ -174,6 +192,37 @@ impl Plant for RigPlant<'_> {
             }
         }
         Some(h)
+    }
+
+    /// Tension: every span's, at every sample; hub load: a relay's two sides (input and
+    /// output span of a rope); joint rate: the output shaft's, by central differences.
+    fn argument_samples(
+        &self,
+        params: &PlantParams,
+        run: usize,
+        arg: Argument,
+    ) -> Result<Vec<f64>, IdentError> {
+        let s = self.sweep_sim(params, run)?;
+        Ok(match arg {
+            Argument::TensionN => [
+                s.tension_in_1_n,
+                s.tension_in_2_n,
+                s.tension_1_n,
+                s.tension_2_n,
+            ]
+            .concat(),
+            Argument::HubLoadN => (s.tension_in_1_n.iter().zip(&s.tension_1_n))
+                .chain(s.tension_in_2_n.iter().zip(&s.tension_2_n))
+                .map(|(a, b)| a + b)
+                .collect(),
+            Argument::JointRateRadS => {
+                let dt = self.sweep.runs[run].dt_s();
+                s.output_rad
+                    .windows(3)
+                    .map(|w| ((w[2] - w[0]) / (2.0 * dt)).abs())
+                    .collect()
+            }
+        })
     }
 }
 
@@ -250,5 +299,18 @@ impl Plant for SpecimenPlant<'_> {
         };
         apply_sensors(params, time_s, &mut channels)?;
         Ok(channels)
+    }
+
+    /// The specimen's tension (the only argument it has).
+    fn argument_samples(
+        &self,
+        params: &PlantParams,
+        run: usize,
+        arg: Argument,
+    ) -> Result<Vec<f64>, IdentError> {
+        Ok(match arg {
+            Argument::TensionN => self.simulate(params, run)?.into_primary(),
+            _ => Vec::new(),
+        })
     }
 }

@@ -6,8 +6,8 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::{
-    compare, describe, fit_model, screen_model, signatures, Comparison, Fitted, Prepared,
-    RunResonance, Signature, Where,
+    compare, describe, fit_model, refine_shape, screen_model, signatures, Comparison, Fitted,
+    Prepared, RunResonance, ShapeRefinement, Signature, Where,
 };
 use crate::error::IdentError;
 use crate::model::Model;
@@ -80,6 +80,10 @@ pub struct Diagnosis {
     /// signatures, each with the simplest term that would produce it, its size and the
     /// share of the excess error it removes (empty otherwise).
     pub signatures: Vec<Signature>,
+    /// Effect laws refined in their shape-free form ([`refine_shape`]): the model's own
+    /// effects when it misses the data, then the best candidate's when its catalog
+    /// formula leaves the data well above the floor.
+    pub refinements: Vec<ShapeRefinement>,
 }
 
 /// Fraction of the baseline's excess squared error a decisive winner must explain.
@@ -99,13 +103,99 @@ pub const MIN_SCORE: f64 = 10.0;
 /// baseline.
 pub const MIN_SCORE_GAP: f64 = 10.0;
 
+/// A fitted model left above this multiple of the noise floor (NRMSE) has its effects'
+/// laws refined in their shape-free form ([`refine_shape`]).
+pub const REFINE_MARGIN: f64 = 1.5;
+
+/// What a candidate's fit is judged against.
+struct Judge {
+    base_ssr: f64,
+    excess: f64,
+    n: f64,
+    k_base: usize,
+    n_runs: usize,
+    screened: bool,
+}
+
+impl Judge {
+    /// The candidate of effect `name` fitted as `f`: its score against the baseline and
+    /// the share of the excess error it explains.
+    fn candidate(&self, name: String, f: &Fitted) -> Candidate {
+        let dk = f
+            .model
+            .fit_specs(self.n_runs)
+            .len()
+            .saturating_sub(self.k_base) as f64;
+        let ssr_c = f.ssr.min(self.base_ssr);
+        let score = self.n * (self.base_ssr / ssr_c.max(f64::MIN_POSITIVE)).ln() - dk * self.n.ln();
+        let explained = if self.excess > 0.0 {
+            (self.base_ssr - ssr_c) / self.excess
+        } else {
+            0.0
+        };
+        Candidate {
+            effect: name,
+            nrmse: f.nrmse,
+            score,
+            explained: explained.min(1.5),
+            params: f.model.named_values().into_iter().collect(),
+            interval_95: f
+                .fit
+                .as_ref()
+                .map(|r| r.intervals_by_name())
+                .unwrap_or_default(),
+            interval_clipped: f
+                .fit
+                .as_ref()
+                .map(|r| r.clipped_by_name())
+                .unwrap_or_default(),
+            decisive: false,
+            screened: self.screened,
+            error: None,
+        }
+    }
+}
+
+/// [`refine_shape`], a failure noted for the explanation instead of ending the
+/// diagnosis.
+fn refine_or_note(
+    prep: &Prepared<'_>,
+    f: &Fitted,
+    e: usize,
+    notes: &mut Vec<String>,
+) -> Option<(ShapeRefinement, Fitted)> {
+    match refine_shape(prep, f, e) {
+        Ok(r) => r,
+        Err(err) => {
+            notes.push(format!(
+                "Refining the law of {} in its shape-free form failed: {err}. ",
+                f.model.effects[e].effect.name()
+            ));
+            None
+        }
+    }
+}
+
 /// Fits the baseline and every applicable registered effect; ranks and decides.
 /// Returns the diagnosis and the winning model (if any).
 pub fn diagnose(
     prep: &Prepared<'_>,
     model: &Model,
 ) -> Result<(Diagnosis, Fitted, Option<Fitted>), IdentError> {
-    let base = fit_model(prep, model)?;
+    let mut base = fit_model(prep, model)?;
+    let mut refinements = Vec::new();
+    let mut notes = Vec::new();
+    // A model that already holds effects and still misses the data: its effects' laws
+    // are refined first, so that a further effect is named only against the best the
+    // existing ones can do (a wrong-shaped law is not patched by a false second effect).
+    if base.nrmse > REFINE_MARGIN * base.noise_floor {
+        for e in 0..base.model.effects.len() {
+            if let Some((r, refined)) = refine_or_note(prep, &base, e, &mut notes) {
+                base = refined;
+                refinements.push(r);
+            }
+        }
+    }
     let cmp = compare(prep, &base.model, &base.sims)?;
     let n = prep.n_samples() as f64;
     let k_base = base.model.fit_specs(prep.runs.len()).len();
@@ -135,46 +225,18 @@ pub fn diagnose(
         })
         .collect();
     let excess = (base.ssr - ssr_floor).max(0.0);
+    let judge = Judge {
+        base_ssr: base.ssr,
+        excess,
+        n,
+        k_base,
+        n_runs: prep.runs.len(),
+        screened: at_floor,
+    };
     let mut cands: Vec<(Candidate, Option<Fitted>)> = fits
         .into_iter()
         .map(|(name, r)| match r {
-            Ok(f) => {
-                let dk = f
-                    .model
-                    .fit_specs(prep.runs.len())
-                    .len()
-                    .saturating_sub(k_base) as f64;
-                let ssr_c = f.ssr.min(base.ssr);
-                let score = n * (base.ssr / ssr_c.max(f64::MIN_POSITIVE)).ln() - dk * n.ln();
-                let explained = if excess > 0.0 {
-                    (base.ssr - ssr_c) / excess
-                } else {
-                    0.0
-                };
-                (
-                    Candidate {
-                        effect: name,
-                        nrmse: f.nrmse,
-                        score,
-                        explained: explained.min(1.5),
-                        params: f.model.named_values().into_iter().collect(),
-                        interval_95: f
-                            .fit
-                            .as_ref()
-                            .map(|r| r.intervals_by_name())
-                            .unwrap_or_default(),
-                        interval_clipped: f
-                            .fit
-                            .as_ref()
-                            .map(|r| r.clipped_by_name())
-                            .unwrap_or_default(),
-                        decisive: false,
-                        screened: at_floor,
-                        error: None,
-                    },
-                    Some(f),
-                )
-            }
+            Ok(f) => (judge.candidate(name, &f), Some(f)),
             Err(err) => (
                 Candidate {
                     effect: name,
@@ -192,11 +254,30 @@ pub fn diagnose(
             ),
         })
         .collect();
-    cands.sort_by(|a, b| {
-        b.0.score
-            .total_cmp(&a.0.score)
-            .then(a.0.effect.cmp(&b.0.effect))
-    });
+    let rank = |cands: &mut Vec<(Candidate, Option<Fitted>)>| {
+        cands.sort_by(|a, b| {
+            b.0.score
+                .total_cmp(&a.0.score)
+                .then(a.0.effect.cmp(&b.0.effect))
+        })
+    };
+    rank(&mut cands);
+    // The best candidate's law in its shape-free form when its catalog formula leaves
+    // the data well above the floor: the effect may be right and its formula wrong.
+    if !at_floor {
+        if let Some((c, Some(f))) = cands.first() {
+            if f.nrmse > REFINE_MARGIN * f.noise_floor && c.explained > 0.0 {
+                let e = f.model.effects.len().saturating_sub(1);
+                if let Some((r, refined)) = refine_or_note(prep, f, e, &mut notes) {
+                    if r.kept {
+                        cands[0] = (judge.candidate(c.effect.clone(), &refined), Some(refined));
+                        rank(&mut cands);
+                    }
+                    refinements.push(r);
+                }
+            }
+        }
+    }
     let decisive = !at_floor
         && cands.first().is_some_and(|(best, fit)| {
             let gap = cands
@@ -236,6 +317,8 @@ pub fn diagnose(
         missing.as_deref(),
         at_floor,
         &sigs,
+        &refinements,
+        &notes,
     );
     let diag = Diagnosis {
         dataset: prep.ds.title.clone(),
@@ -272,6 +355,7 @@ pub fn diagnose(
         explanation,
         comparison: cmp,
         signatures: sigs,
+        refinements,
     };
     Ok((diag, base, winner))
 }
@@ -284,8 +368,16 @@ fn explain(
     missing: Option<&str>,
     at_floor: bool,
     sigs: &[Signature],
+    refinements: &[ShapeRefinement],
+    notes: &[String],
 ) -> String {
     let mut s = String::new();
+    for n in notes {
+        s.push_str(n);
+    }
+    for r in refinements {
+        s.push_str(&describe_refinement(r));
+    }
     let ratio = base.nrmse / base.noise_floor.max(f64::MIN_POSITIVE);
     if at_floor {
         s.push_str(&format!(
@@ -405,4 +497,35 @@ fn explain(
         }
     }
     s
+}
+
+/// One sentence on a shape-free refinement.
+fn describe_refinement(r: &ShapeRefinement) -> String {
+    let k = r.knots.len().saturating_sub(1);
+    let points: Vec<String> = r
+        .knots
+        .iter()
+        .zip(&r.values)
+        .zip(&r.catalog)
+        .skip(1)
+        .map(|((x, y), c)| format!("{y:.3} at {x:.0} (catalog law {c:.3})"))
+        .collect();
+    if r.kept {
+        format!(
+            "The catalog law of {} left NRMSE {:.4}; refined as a table of {} over {} ({k} knots chosen by BIC, score {:.1}) it gives {:.4}: {} {}. ",
+            r.effect,
+            r.nrmse_parametric,
+            r.value,
+            r.argument,
+            r.score,
+            r.nrmse,
+            r.value,
+            points.join(", ")
+        )
+    } else {
+        format!(
+            "The law of {} refined as a table of {} over {} does not fit better than its catalog law (NRMSE {:.4} against {:.4}, BIC score {:.1}): its formula is not what misses the data. ",
+            r.effect, r.value, r.argument, r.nrmse, r.nrmse_parametric, r.score
+        )
+    }
 }

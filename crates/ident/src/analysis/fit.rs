@@ -209,8 +209,7 @@ fn starting_values(
         x0 = points[best].clone();
         let mut s2 = specs.clone();
         for (s, &v) in s2.iter_mut().zip(&x0) {
-            let span = s.upper - s.lower;
-            s.initial = v.clamp(s.lower + 1e-6 * span, s.upper - 1e-6 * span);
+            s.initial = crate::fitting::strictly_inside(v, s.lower, s.upper);
         }
         if let Ok(r) = fit(
             &problem,

@@ -13,6 +13,8 @@
 //!   per test frequency, where it concentrates, residual checks, resonances);
 //! * `diagnose.rs`: the baseline and every applicable registered effect fitted, ranked,
 //!   and the missing effect named when the evidence is decisive ([`diagnose`]);
+//! * `shape.rs`: an effect's law refined in its shape-free form (a table over the range
+//!   the data visits, the number of knots chosen by BIC; [`refine_shape`]);
 //! * `signature.rs`: the residual's signatures, each with the simplest term that would
 //!   produce it, its size and the share of the excess error it removes ([`signatures`]).
 
@@ -20,6 +22,7 @@ mod compare;
 mod diagnose;
 mod fit;
 mod prepare;
+mod shape;
 mod signature;
 
 pub use compare::{
@@ -27,8 +30,9 @@ pub use compare::{
 };
 pub use diagnose::{
     diagnose, BaselineSummary, Candidate, Diagnosis, FLOOR_MARGIN, MIN_EXPLAINED, MIN_SCORE,
-    MIN_SCORE_GAP,
+    MIN_SCORE_GAP, REFINE_MARGIN,
 };
 pub use fit::{fit_model, screen_model, Fitted};
 pub use prepare::{noise_sigma_second_difference, Prepared, RunData};
+pub use shape::{refine_shape, KnotChoice, ShapeRefinement, KNOT_COUNTS};
 pub use signature::{describe, signatures, Equivalent, Signature, SignatureKind};

@@ -401,8 +401,7 @@ fn fit_sweep_term(
         neutral
     };
     for (s, &v) in specs.iter_mut().zip(&start) {
-        let span = s.upper - s.lower;
-        s.initial = v.clamp(s.lower + 1e-6 * span, s.upper - 1e-6 * span);
+        s.initial = crate::fitting::strictly_inside(v, s.lower, s.upper);
     }
     let r = fit(
         &SimOf(&tf),

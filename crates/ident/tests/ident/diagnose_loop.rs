@@ -44,18 +44,18 @@ fn registry_has_the_issue_effects_with_valid_params() {
         longreach_rope::RopeLaw::from_params(&p, longreach_rope::LawKind::FourElement).unwrap();
     effects::find("nonlinear_stiffness")
         .unwrap()
-        .on_law(&[2e-3], &mut law)
+        .on_law(effects::Args::values(&[2e-3]), &mut law)
         .unwrap();
     assert!((law.stiffening_per_n - 2e-3).abs() < 1e-18);
     effects::find("extra_retardation")
         .unwrap()
-        .on_law(&[2e5, 2e6], &mut law)
+        .on_law(effects::Args::values(&[2e5, 2e6]), &mut law)
         .unwrap();
     assert_eq!(law.kelvin.len(), 2);
     assert!((law.kelvin[1].c_n_s / law.kelvin[1].k_n - 10.0).abs() < 1e-12);
     let err = effects::find("internal_damping")
         .unwrap()
-        .on_law(&[-1.0], &mut law);
+        .on_law(effects::Args::values(&[-1.0]), &mut law);
     assert!(err
         .unwrap_err()
         .to_string()

@@ -12,4 +12,5 @@ mod metrics;
 mod new_effects;
 mod relay_friction;
 mod sensors;
+mod shapes;
 mod signatures;

@@ -1,0 +1,39 @@
+//! Times the shape-free refinement of a model's effect on a dataset:
+//! `cargo run --release -p longreach-ident --example refine_probe -- DATASET MODEL.toml`.
+use std::time::Instant;
+
+use longreach_ident::analysis::{fit_model, refine_shape, Prepared};
+use longreach_ident::model::Model;
+use longreach_ident::Dataset;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    let ds = Dataset::load(&args[1])?;
+    let text = std::fs::read_to_string(&args[2])?;
+    let model = Model::from_toml(&text, &args[2], &ds)?;
+    let prep = Prepared::new(&ds)?;
+    let t = Instant::now();
+    let sims = prep.simulate(&model)?;
+    println!(
+        "one simulation: {:.2} s, nrmse {:.4}",
+        t.elapsed().as_secs_f64(),
+        prep.overall(&sims).0
+    );
+    let t = Instant::now();
+    let f = fit_model(&prep, &model)?;
+    println!(
+        "parametric fit: {:.1} s, nrmse {:.4} (floor {:.4}), evaluations {:?}",
+        t.elapsed().as_secs_f64(),
+        f.nrmse,
+        f.noise_floor,
+        f.fit.as_ref().map(|r| r.evaluations)
+    );
+    let t = Instant::now();
+    let e = f.model.effects.len() - 1;
+    if let Some((r, g)) = refine_shape(&prep, &f, e)? {
+        println!("refinement: {:.1} s", t.elapsed().as_secs_f64());
+        println!("{}", serde_json::to_string_pretty(&r)?);
+        println!("{}", g.model.to_toml("refined"));
+    }
+    Ok(())
+}

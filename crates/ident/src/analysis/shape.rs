@@ -1,0 +1,289 @@
+//! Shape-free refinement of an effect's law: the function at the heart of an effect
+//! (stiffness against tension, creep rate against tension, friction against hub load or
+//! sliding speed; [`longreach_drive::effects::Shape`]) fitted as a piecewise-linear
+//! table over the range the data visits, in place of the catalog's formula.
+//!
+//! * **Knots**: 0, then halfway between `top i/K` and the quantile `i/K` (`i = 1..K`)
+//!   of the argument's values over every run simulated with the parametric fit (`top`
+//!   the largest, the last knot): the knots follow the data, and the stretch below its
+//!   bulk keeps knots too (a stiffness law's shape there sets the strain everywhere
+//!   above).
+//! * **Start**: the parametric law's values at the knots ([`Effect::curve`]), so the
+//!   table starts where the catalog's formula ended.
+//! * **Fit**: every free parameter of the model together with the table's values
+//!   ([`fit_model`]: for sweeps a start refined on the analytic response, then least
+//!   squares on the simulation); a law that never falls is fitted through its
+//!   non-negative rises from knot to knot.
+//! * **How many knots**: the number the data chooses by the Bayesian information
+//!   criterion among `K` in [`KNOT_COUNTS`], tried in turn while it improves; the refinement is kept only when its BIC
+//!   beats the parametric law's by [`MIN_SCORE`].
+//! * **Band**: the 95% band of each knot's value from the fit's covariance (the sum
+//!   of the rises below it for a non-decreasing law), `1.96` standard errors.
+
+use longreach_drive::effects::Effect;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::diagnose::MIN_SCORE;
+use super::fit::{fit_model, Fitted};
+use super::prepare::Prepared;
+use crate::error::IdentError;
+use crate::model::{Owner, ShapeUse};
+
+/// Numbers of knots after the one at 0 that the refinement tries.
+pub const KNOT_COUNTS: [usize; 3] = [2, 4, 7];
+
+/// One number of knots tried.
+#[derive(Debug, Clone, Serialize)]
+pub struct KnotChoice {
+    /// Knots after the one at 0.
+    pub knots: usize,
+    /// NRMSE of the fit.
+    pub nrmse: f64,
+    /// Bayesian information criterion `n ln(SSR/n) + p ln n`.
+    pub bic: f64,
+}
+
+/// The outcome of a shape-free refinement.
+#[derive(Debug, Clone, Serialize)]
+pub struct ShapeRefinement {
+    /// The effect whose law was refined.
+    pub effect: String,
+    /// What the law takes (`tension_n`, ...).
+    pub argument: String,
+    /// What it gives (`stiffness_factor`, ...).
+    pub value: String,
+    /// Unit of the value.
+    pub unit: String,
+    /// Knots of the chosen table.
+    pub knots: Vec<f64>,
+    /// Its values at the knots (run 0's for a per-run value).
+    pub values: Vec<f64>,
+    /// Their 95% band, `[lower, upper]` per knot.
+    pub band_95: Vec<[f64; 2]>,
+    /// The catalog law with its fitted parameter values, at the knots.
+    pub catalog: Vec<f64>,
+    /// The catalog law over a fine grid `(argument, value)` for plots, and the table's.
+    pub curve: Vec<[f64; 3]>,
+    /// Every number of knots tried.
+    pub tried: Vec<KnotChoice>,
+    /// NRMSE with the catalog law (the parametric fit).
+    pub nrmse_parametric: f64,
+    /// NRMSE with the chosen table.
+    pub nrmse: f64,
+    /// BIC improvement over the parametric fit (positive: the table is better).
+    pub score: f64,
+    /// Whether the table replaces the parametric law (score above [`MIN_SCORE`]).
+    pub kept: bool,
+}
+
+/// The quantile `q` of sorted `v`.
+fn quantile(v: &[f64], q: f64) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let i = (q * (v.len() - 1) as f64).round() as usize;
+    v[i.min(v.len() - 1)]
+}
+
+/// `K` knots after 0, each halfway between the evenly spaced position `top i / K` and
+/// the quantile `i / K` of `sorted` (the largest value, `top`, last): the knots follow
+/// the data without leaving the stretch below its bulk bare (a law's shape there sets
+/// the strain at every higher tension).
+fn place_knots(sorted: &[f64], k: usize) -> Vec<f64> {
+    let top = quantile(sorted, 1.0);
+    let mut knots: Vec<f64> = (0..=k)
+        .map(|i| {
+            let a = i as f64 / k as f64;
+            0.5 * (top * a + quantile(sorted, a).min(top))
+        })
+        .collect();
+    knots[0] = 0.0;
+    knots[k] = top;
+    if knots.windows(2).any(|w| w[1] - w[0] < top / (4 * k) as f64) {
+        knots = (0..=k).map(|i| top * i as f64 / k as f64).collect();
+    }
+    knots
+}
+
+/// The BIC of a fit with `p` free parameters over `n` samples.
+fn bic(ssr: f64, p: usize, n: f64) -> f64 {
+    n * (ssr.max(f64::MIN_POSITIVE) / n).ln() + p as f64 * n.ln()
+}
+
+/// Refines the law of effect number `e` of the fitted model `fitted` in its shape-free
+/// form (module docs). `None` when the effect has no shape, already holds one, or the
+/// plant gives no values of its argument. The returned [`Fitted`] is the model with the
+/// table when the refinement is kept, otherwise `fitted` unchanged.
+pub fn refine_shape(
+    prep: &Prepared<'_>,
+    fitted: &Fitted,
+    e: usize,
+) -> Result<Option<(ShapeRefinement, Fitted)>, IdentError> {
+    let Some(u) = fitted.model.effects.get(e) else {
+        return Ok(None);
+    };
+    let effect: &'static dyn Effect = u.effect;
+    let Some(shape) = effect.shape() else {
+        return Ok(None);
+    };
+    if u.shape.is_some() {
+        return Ok(None);
+    }
+    let n_runs = prep.runs.len();
+    let values0: Vec<f64> = u.params.iter().map(|p| p.value).collect();
+    let mut samples: Vec<f64> = (0..n_runs)
+        .into_par_iter()
+        .map(|r| {
+            let params = fitted.model.plant_params(r)?;
+            prep.plant.argument_samples(&params, r, shape.argument)
+        })
+        .collect::<Result<Vec<_>, IdentError>>()?
+        .concat();
+    samples.retain(|x| x.is_finite() && *x >= 0.0);
+    samples.sort_by(f64::total_cmp);
+    if samples.is_empty() || quantile(&samples, 1.0) <= 0.0 {
+        return Ok(None);
+    }
+    let n = prep.n_samples() as f64;
+    let p_parametric = fitted.model.fit_specs(n_runs).len();
+    let bic_parametric = bic(fitted.ssr, p_parametric, n);
+    let tables: Vec<(Vec<f64>, Vec<f64>)> = KNOT_COUNTS
+        .iter()
+        .map(|&k| {
+            let knots = place_knots(&samples, k);
+            let mut y: Vec<f64> = knots
+                .iter()
+                .map(|&x| {
+                    effect
+                        .curve(&values0, x)
+                        .clamp(shape.max_value * 1e-6, shape.max_value)
+                })
+                .collect();
+            if let Some(z) = shape.value_at_zero {
+                y[0] = z;
+            }
+            if shape.non_decreasing {
+                for i in 1..y.len() {
+                    y[i] = y[i].max(y[i - 1]);
+                }
+            }
+            (knots, y)
+        })
+        .collect();
+    let mut fits: Vec<(usize, f64, Fitted)> = Vec::new();
+    for (knots, y) in &tables {
+        let sh = ShapeUse::new(effect, shape, knots, y, true)?;
+        let model = fitted.model.with_shape(e, sh);
+        let f = fit_model(prep, &model)?;
+        let p = f.model.fit_specs(n_runs).len();
+        let b = bic(f.ssr, p, n);
+        // more knots only while the criterion improves
+        let worse = fits.last().is_some_and(|l| b >= l.1);
+        fits.push((knots.len() - 1, b, f));
+        if worse {
+            break;
+        }
+    }
+    let tried = fits
+        .iter()
+        .map(|(k, b, f)| KnotChoice {
+            knots: *k,
+            nrmse: f.nrmse,
+            bic: *b,
+        })
+        .collect();
+    let Some(best) = (0..fits.len()).min_by(|&a, &b| fits[a].1.total_cmp(&fits[b].1)) else {
+        return Ok(None);
+    };
+    let (_, best_bic, best_fit) = fits.swap_remove(best);
+    let score = bic_parametric - best_bic;
+    let Some(sh) = best_fit.model.effects[e].shape.clone() else {
+        return Ok(None);
+    };
+    let knots = sh.knots.clone();
+    let values = sh.values_for(0);
+    let band_95 = band(&best_fit, e, &sh, &values, n_runs);
+    let catalog: Vec<f64> = knots.iter().map(|&x| effect.curve(&values0, x)).collect();
+    let table = sh.table_for(0).map_err(crate::model::ModelError::from)?;
+    let top = *knots.last().unwrap_or(&0.0);
+    let curve = (0..=40)
+        .map(|i| {
+            let x = top * i as f64 / 40.0;
+            [x, effect.curve(&values0, x), table.eval(x)]
+        })
+        .collect();
+    let kept = score > MIN_SCORE;
+    let refinement = ShapeRefinement {
+        effect: effect.name().to_string(),
+        argument: shape.argument.name().to_string(),
+        value: shape.value.to_string(),
+        unit: shape.unit.to_string(),
+        knots,
+        values,
+        band_95,
+        catalog,
+        curve,
+        tried,
+        nrmse_parametric: fitted.nrmse,
+        nrmse: best_fit.nrmse,
+        score,
+        kept,
+    };
+    Ok(Some((
+        refinement,
+        if kept { best_fit } else { fitted.clone() },
+    )))
+}
+
+/// The 95% band of every knot's value: `1.96` standard errors of the value (for a
+/// non-decreasing law the sum of the rises below it, with their correlations).
+fn band(f: &Fitted, e: usize, sh: &ShapeUse, values: &[f64], n_runs: usize) -> Vec<[f64; 2]> {
+    let Some(r) = &f.fit else {
+        return values.iter().map(|&v| [v, v]).collect();
+    };
+    let slots = f.model.free_slots(n_runs);
+    // index in the fit of each of the table's parameters (global ones only)
+    let idx: Vec<Option<usize>> = (0..sh.params.len())
+        .map(|j| {
+            slots
+                .iter()
+                .position(|s| s.owner == Owner::Shape(e) && s.index == j && s.run.is_none())
+        })
+        .collect();
+    let fixed_first = sh.shape.value_at_zero.is_some();
+    values
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| {
+            // the table parameters value i depends on
+            let deps: Vec<usize> = if sh.shape.non_decreasing {
+                let first = if fixed_first { 0 } else { 1 };
+                (0..i + first).filter(|&j| j < idx.len()).collect()
+            } else if fixed_first {
+                if i == 0 {
+                    Vec::new()
+                } else {
+                    vec![i - 1]
+                }
+            } else {
+                vec![i]
+            };
+            let mut var = 0.0;
+            for &a in &deps {
+                for &b in &deps {
+                    if let (Some(ia), Some(ib)) = (idx[a], idx[b]) {
+                        let c = if ia == ib { 1.0 } else { r.correlation[ia][ib] };
+                        var += c * r.std_errors[ia] * r.std_errors[ib];
+                    }
+                }
+            }
+            let half = if var.is_finite() {
+                1.96 * var.max(0.0).sqrt()
+            } else {
+                f64::INFINITY
+            };
+            [(v - half).max(0.0), v + half]
+        })
+        .collect()
+}

@@ -1,0 +1,206 @@
+//! Effect laws of any shape: an effect's law held as a table in model files, hidden by
+//! `synth`, simulated by `compare`, and refined by `diagnose` when the catalog's formula
+//! leaves the data above the noise floor.
+
+use std::path::PathBuf;
+
+use longreach_drive::effects;
+use longreach_ident::analysis::{diagnose, Prepared, REFINE_MARGIN};
+use longreach_ident::model::{Model, ShapeUse};
+use longreach_ident::synth::{self, CyclicOptions};
+use longreach_ident::{Dataset, DatasetKind};
+
+fn example(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../data/examples")
+        .join(name)
+}
+
+fn relax_base() -> (Dataset, Model) {
+    let ds = Dataset::load(example("example_relax_control")).unwrap();
+    let m = Model::baseline(&ds).unwrap();
+    (ds, m)
+}
+
+/// The baseline plus `nonlinear_creep` whose creep factor is the table `values` at
+/// `knots` (fitted or not).
+fn creep_table(base: &Model, knots: &[f64], values: &[f64], fit: bool) -> Model {
+    let effect = effects::find("nonlinear_creep").unwrap();
+    let m = base.with_effect(effect);
+    let sh = ShapeUse::new(effect, effect.shape().unwrap(), knots, values, fit).unwrap();
+    m.with_shape(0, sh)
+}
+
+#[test]
+fn shaped_model_files_round_trip_and_bad_tables_are_located() {
+    let (ds, base) = relax_base();
+    let m = creep_table(
+        &base,
+        &[0.0, 300.0, 700.0, 1500.0],
+        &[1.0, 2.5, 4.0, 4.5],
+        true,
+    );
+    let text = m.to_toml("shape test");
+    assert!(text.contains("[effect.shape]"), "{text}");
+    assert!(
+        text.contains("tension_n = [0e0, 3e2, 7e2, 1.5e3]"),
+        "{text}"
+    );
+    let back = Model::from_toml(&text, "m.toml", &ds).unwrap();
+    let sh = back.effects[0].shape.as_ref().unwrap();
+    assert_eq!(sh.knots, vec![0.0, 300.0, 700.0, 1500.0]);
+    assert_eq!(sh.values_for(0), vec![1.0, 2.5, 4.0, 4.5]);
+    // the table's three rises are fitted, the parametric law's two values held
+    assert_eq!(back.fit_specs(1).len(), m.fit_specs(1).len());
+    assert!(back.effects[0].params.iter().all(|p| !p.fit));
+    // the table is the law: the creep rate at 1000 N is c2's times 4.0 + (1000 - 700)
+    // / (1500 - 700) * 0.5
+    let law = back.law_for_run(0).unwrap().0;
+    let c2 = law.c2_n_s.unwrap();
+    let want = 1000.0 / c2 * (4.0 + 0.3 / 0.8 * 0.5);
+    let got = law.creep_rate(1000.0);
+    assert!((got / want - 1.0).abs() < 1e-12, "{got} vs {want}");
+
+    let with_shape = |shape: &str| {
+        format!("rope = \"dyneema2\"\n\n[[effect]]\nname = \"nonlinear_creep\"\n\n[effect.shape]\n{shape}\n")
+    };
+    let cases = [
+        // a table for an effect without a shape-free form
+        (
+            "rope = \"dyneema2\"\n[[effect]]\nname = \"internal_damping\"\n[effect.shape]\ntension_n = [0, 1]\nx = [1, 2]\n".to_string(),
+            vec!["m.toml:4", "no shape-free form", "nonlinear_stiffness", "nonlinear_creep"],
+        ),
+        // the first value is fixed at 1 (c2 holds the scale)
+        (
+            with_shape("tension_n = [0, 500]\ncreep_factor = [2, 3]\nfit = true"),
+            vec!["m.toml:8", "creep_factor", "start the values with 1"],
+        ),
+        // a creep that slows down with tension is not this effect
+        (
+            with_shape("tension_n = [0, 500, 900]\ncreep_factor = [1, 3, 2]"),
+            vec!["m.toml:6", "must not fall"],
+        ),
+        // knots from 0, increasing
+        (
+            with_shape("tension_n = [10, 500]\ncreep_factor = [1, 3]"),
+            vec!["m.toml:6", "first knot must be 0"],
+        ),
+        (
+            with_shape("tension_n = [0, 500]\ncreep_factor = [1, 3, 4]"),
+            vec!["m.toml:8", "3 values for 2 knots"],
+        ),
+        (
+            with_shape("tension_n = [0, 500]\ncreep_factor = [1, 3]\nknots = 4"),
+            vec!["m.toml:9", "unknown key `knots`", "fit = true or false"],
+        ),
+    ];
+    for (text, words) in cases {
+        let e = Model::from_toml(&text, "m.toml", &ds)
+            .unwrap_err()
+            .to_string();
+        for w in words {
+            assert!(e.contains(w), "`{w}` not in: {e}\n--- for:\n{text}");
+        }
+    }
+}
+
+/// A stiffening of another shape than the catalog's (`1 + b f`, a straight line: this
+/// one rises steeply and saturates) hidden in a cyclic load-strain test: `diagnose`
+/// names `nonlinear_stiffness`, its formula leaves the data above the floor, the table
+/// brings it to the floor with the truth inside its band, and on the written model a
+/// second `diagnose` finds nothing more.
+#[test]
+fn a_stiffening_of_another_shape_is_refined_to_the_floor() {
+    let (_, relax) = relax_base();
+    let opt = CyclicOptions::paper("dyneema2", 31);
+    let shell = |m: &Model| {
+        let d = synth::cyclic(m, &opt).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        d.write(dir.path().join("ds"), "hidden saturating stiffening")
+            .unwrap();
+        let ds = Dataset::load(dir.path().join("ds")).unwrap();
+        (dir, ds)
+    };
+    // the cyclic test's own baseline (k1, c2, k3, c3 fitted) and its tension range
+    let (_d0, ds0) = shell(&relax);
+    let base = Model::baseline(&ds0).unwrap();
+    let DatasetKind::Cyclic(c) = &ds0.kind else {
+        panic!("not cyclic")
+    };
+    let top = c
+        .runs
+        .iter()
+        .flat_map(|r| r.tension_n.iter().copied())
+        .fold(0.0, f64::max);
+    let effect = effects::find("nonlinear_stiffness").unwrap();
+    let sh = ShapeUse::new(
+        effect,
+        effect.shape().unwrap(),
+        &[0.0, 0.5 * top, 1.5 * top],
+        &[1.0, 2.2, 2.6],
+        false,
+    )
+    .unwrap();
+    let hidden = base.with_effect(effect).with_shape(0, sh);
+    let (_d1, ds) = shell(&hidden);
+    let prep = Prepared::new(&ds).unwrap();
+    // the truth itself: NRMSE 0.00609 against the floor's 0.00601
+    let (truth_nrmse, truth_floor) = prep.overall(&prep.simulate(&hidden).unwrap());
+    assert!(truth_nrmse < 1.05 * truth_floor);
+
+    let (diag, _, winner) = diagnose(&prep, &base).unwrap();
+    assert_eq!(
+        diag.missing_effect.as_deref(),
+        Some("nonlinear_stiffness"),
+        "{}",
+        diag.explanation
+    );
+    let r = diag
+        .refinements
+        .iter()
+        .find(|r| r.effect == "nonlinear_stiffness")
+        .unwrap_or_else(|| panic!("no refinement: {}", diag.explanation));
+    let floor = diag.baseline.noise_floor_nrmse;
+    assert!(
+        r.nrmse_parametric > REFINE_MARGIN * floor,
+        "the catalog law already fits: {} vs floor {floor}",
+        r.nrmse_parametric
+    );
+    assert!(r.kept, "{}", diag.explanation);
+    let winner = winner.unwrap();
+    assert!(
+        winner.nrmse <= 1.5 * floor,
+        "after refinement {} vs floor {floor}: {}",
+        winner.nrmse,
+        diag.explanation
+    );
+    assert!(
+        diag.explanation.contains("refined as a table"),
+        "{}",
+        diag.explanation
+    );
+    // the fitted table follows the hidden one where the data are (within 10%), and
+    // its band holds the fitted value
+    let truth = hidden.effects[0]
+        .shape
+        .as_ref()
+        .unwrap()
+        .table_for(0)
+        .unwrap();
+    for ((x, v), b) in r.knots.iter().zip(&r.values).zip(&r.band_95).skip(1) {
+        let t = truth.eval(*x);
+        assert!(
+            (v / t - 1.0).abs() < 0.1,
+            "knot {x:.0} N: fitted {v:.3}, truth {t:.3}: {:?}",
+            r
+        );
+        assert!(b[0] <= *v && *v <= b[1], "{b:?} {v}");
+    }
+
+    // the second pass: the written model holds the table; nothing more is named
+    let text = winner.model.to_toml("after diagnose");
+    let again = Model::from_toml(&text, "m.toml", &ds).unwrap();
+    let (d2, base2, _) = diagnose(&prep, &again).unwrap();
+    assert_eq!(d2.missing_effect, None, "{}", d2.explanation);
+    assert!(base2.nrmse <= 1.5 * floor, "{}", d2.explanation);
+}
