@@ -34,5 +34,5 @@ pub use diagnose::{
 };
 pub use fit::{fit_model, screen_model, Fitted};
 pub use prepare::{noise_sigma_second_difference, Prepared, RunData};
-pub use shape::{refine_shape, KnotChoice, ShapeRefinement, KNOT_COUNTS};
+pub use shape::{not_refined_because, refine_shape, KnotChoice, ShapeRefinement, KNOT_COUNTS};
 pub use signature::{describe, signatures, Equivalent, Signature, SignatureKind};

@@ -20,7 +20,7 @@
 //! * **Band**: the 95% band of each knot's value from the fit's covariance (the sum
 //!   of the rises below it for a non-decreasing law), `1.96` standard errors.
 
-use longreach_drive::effects::Effect;
+use longreach_drive::effects::{DataKind, Effect, Site};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -77,6 +77,19 @@ pub struct ShapeRefinement {
     pub kept: bool,
 }
 
+/// Why the law of `effect` is not refined on these data, if it is not: on a sweep a
+/// rope-law table makes the rig's rope non-linear, and each knot count then costs a
+/// time-domain fit of minutes (the budget for a whole diagnosis is 10 s), so
+/// the refinement is not run there yet; write `[effect.shape]` by hand and `fit` it.
+pub fn not_refined_because(prep: &Prepared<'_>, effect: &dyn Effect) -> Option<String> {
+    (prep.kind == DataKind::SineSweep && effect.site() == Site::RopeLaw).then(|| {
+        format!(
+            "The law of {} is not refined in its shape-free form on sweeps yet (a non-linear rope makes each time-domain fit of the rig take minutes); to try a table, write [effect.shape] in the model file (docs/models.md) and run fit. ",
+            effect.name()
+        )
+    })
+}
+
 /// The quantile `q` of sorted `v`.
 fn quantile(v: &[f64], q: f64) -> f64 {
     if v.is_empty() {
@@ -112,8 +125,9 @@ fn bic(ssr: f64, p: usize, n: f64) -> f64 {
 }
 
 /// Refines the law of effect number `e` of the fitted model `fitted` in its shape-free
-/// form (module docs). `None` when the effect has no shape, already holds one, or the
-/// plant gives no values of its argument. The returned [`Fitted`] is the model with the
+/// form (module docs). `None` when the effect has no shape, already holds one, is not
+/// refined on these data ([`not_refined_because`]) or the plant gives no values of its
+/// argument. The returned [`Fitted`] is the model with the
 /// table when the refinement is kept, otherwise `fitted` unchanged.
 pub fn refine_shape(
     prep: &Prepared<'_>,
@@ -127,7 +141,7 @@ pub fn refine_shape(
     let Some(shape) = effect.shape() else {
         return Ok(None);
     };
-    if u.shape.is_some() {
+    if u.shape.is_some() || not_refined_because(prep, effect).is_some() {
         return Ok(None);
     }
     let n_runs = prep.runs.len();
