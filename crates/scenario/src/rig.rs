@@ -1,5 +1,5 @@
 //! The `[rig]` table: the paper's cable-pulley rig, with the same keys as the
-//! measurement format (`formats/measurements.md`), plus the rope law and pre-stretch.
+//! measurement format (`docs/measurements.md`), plus the rope law and pre-stretch.
 
 use serde::Deserialize;
 

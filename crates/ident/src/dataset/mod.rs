@@ -1,7 +1,7 @@
 //! Reader and writer for measurement datasets in the format `longreach-measurement/1`.
 //!
 //! A dataset is a folder holding one `dataset.toml` and the CSV files it names
-//! (format description: `formats/measurements.md` of the project). Three kinds exist:
+//! (format description: `docs/measurements.md`). Three kinds exist:
 //!
 //! * `sine_sweep`: the paper's cable-pulley rig (Sec. IV, Fig. 7/8), stepped-sine runs,
 //! * `relaxation`: tension relaxation at constant strain (Sec. III, eq. 6),
