@@ -36,6 +36,11 @@ pub struct DataArgs {
 pub struct FitArgs {
     #[command(flatten)]
     data: DataArgs,
+    /// Write the model with its fitted values (and their 95% intervals, as comments)
+    /// as a model file: the next `compare --model`, `fit --model` or `diagnose --model`
+    /// starts from it.
+    #[arg(long)]
+    write_model: Option<PathBuf>,
 }
 
 /// `longreach compare`.
@@ -247,6 +252,14 @@ pub fn run_fit(a: &FitArgs) -> Result<ExitCode> {
                 "interval_method": f.fit.as_ref().map(|r| r.interval_method.clone()),
             }),
         )?;
+    }
+    if let Some(p) = &a.write_model {
+        let comment = format!(
+            "written by `longreach fit` for dataset {}\nNRMSE before {:.5}, after {:.5} (noise floor {:.5})",
+            ds.title, f.nrmse_before, f.nrmse, f.noise_floor
+        );
+        let text = f.model.to_toml_with_fit(&comment, f.fit.as_ref());
+        write_atomic(p, text.as_bytes())?;
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -743,5 +756,78 @@ fn write_report(
             md.push_str("![residual spectrum](residual_spectrum.png)\n");
         }
     }
+    if let Some((d, _)) = diag {
+        for r in &d.refinements {
+            write_law_figure(dir, r, &mut md)?;
+        }
+    }
     write_atomic(&dir.join("report.md"), md.as_bytes())
+}
+
+/// The law an effect's refinement fitted (its table, with the 95% band at the knots)
+/// against the catalog's formula with its fitted values, as `law_EFFECT.png`, and a
+/// table of the knots in the report.
+fn write_law_figure(dir: &Path, r: &analysis::ShapeRefinement, md: &mut String) -> Result<()> {
+    let x: Vec<f64> = r.curve.iter().map(|p| p[0]).collect();
+    let band = |k: usize, label: &str| Series {
+        label: label.into(),
+        x: r.knots.clone(),
+        y: r.band_95.iter().map(|b| b[k]).collect(),
+        style: Style::DashedLine,
+        color: 2,
+    };
+    let fig = Figure {
+        title: format!(
+            "{}: {} against {} (NRMSE {:.4} with the catalog law, {:.4} with the table{})",
+            r.effect,
+            r.value,
+            r.argument,
+            r.nrmse_parametric,
+            r.nrmse,
+            if r.kept { ", kept" } else { ", not kept" }
+        ),
+        x_label: r.argument.clone(),
+        log_x: false,
+        panels: vec![Panel {
+            y_label: format!("{} [{}]", r.value, r.unit),
+            series: vec![
+                Series {
+                    label: "catalog law, fitted".into(),
+                    x: x.clone(),
+                    y: r.curve.iter().map(|p| p[1]).collect(),
+                    style: Style::DashedLine,
+                    color: 1,
+                },
+                Series {
+                    label: format!("table, {} knots", r.knots.len()),
+                    x: r.knots.clone(),
+                    y: r.values.clone(),
+                    style: Style::LineMarkers,
+                    color: 0,
+                },
+                band(0, "95% band"),
+                band(1, ""),
+            ],
+            y_range: None,
+            log_y: false,
+        }],
+        width_px: 1000,
+        height_px: 500,
+    };
+    let name = format!("law_{}.png", r.effect);
+    write_atomic_with(&dir.join(&name), |p| Ok(write_png(&fig, p)?))?;
+    md.push_str(&format!(
+        "\n### The law of {} refined\n\n![{name}]({name})\n\n| {} | {} (table) | 95% band | catalog law |\n|---|---|---|---|\n",
+        r.effect, r.argument, r.value
+    ));
+    for (i, k) in r.knots.iter().enumerate() {
+        md.push_str(&format!(
+            "| {} | {} | {} | {} |\n",
+            fmt(*k),
+            fmt(r.values[i]),
+            fmt_interval(r.band_95[i][0], r.band_95[i][1]),
+            fmt(r.catalog[i])
+        ));
+    }
+    Ok(())
 }

@@ -209,6 +209,11 @@ pub struct FitOptions {
     /// closed forms; raise it (1e-6..1e-4) for residuals from a simulation whose error
     /// control makes them noisy at small scales.
     pub diff_step: f64,
+    /// Most residual-vector evaluations of the optimiser, its Jacobians' included (each
+    /// costs `p + 1`): the budget of a fit whose every evaluation is a dear simulation.
+    /// The optimiser stops at its last accepted point before a Jacobian would exceed it
+    /// (result then has `converged = false`). `usize::MAX`: no budget but `patience`.
+    pub max_evaluations: usize,
 }
 
 impl Default for FitOptions {
@@ -218,6 +223,7 @@ impl Default for FitOptions {
             gtol: 1e-10,
             patience: 200,
             diff_step: f64::EPSILON.sqrt(),
+            max_evaluations: usize::MAX,
         }
     }
 }
@@ -618,6 +624,9 @@ struct Problem<'a> {
     error: RefCell<Option<FitError>>,
     jacobians: Cell<usize>,
     evaluations: Cell<usize>,
+    /// [`FitOptions::max_evaluations`], and whether a Jacobian was refused by it.
+    max_evaluations: usize,
+    budget_spent: Cell<bool>,
     /// Residuals of the last point that evaluated (see "Points where the model fails").
     last_good: RefCell<na::DVector<f64>>,
     /// Trial points where the model failed, and the first failure.
@@ -674,8 +683,13 @@ impl LeastSquaresProblem<f64, na::Dyn, na::Dyn> for Problem<'_> {
     }
 
     fn jacobian(&self) -> Option<na::DMatrix<f64>> {
-        self.jacobians.set(self.jacobians.get() + 1);
         let p = self.u.len();
+        if self.evaluations.get().saturating_add(p + 1) > self.max_evaluations {
+            // the budget is spent: stop at this accepted point
+            self.budget_spent.set(true);
+            return None;
+        }
+        self.jacobians.set(self.jacobians.get() + 1);
         self.evaluations.set(self.evaluations.get() + p + 1);
         let u0 = self.u.as_slice();
         let steps: Vec<f64> = u0
@@ -765,6 +779,8 @@ pub fn fit(
         error: RefCell::new(None),
         jacobians: Cell::new(0),
         evaluations: Cell::new(1),
+        max_evaluations: opts.max_evaluations,
+        budget_spent: Cell::new(false),
         last_good: RefCell::new(na::DVector::from_vec(r0)),
         rejected: Cell::new(0),
         first_rejection: RefCell::new(None),
@@ -785,6 +801,7 @@ pub fn fit(
         | TerminationReason::Converged { .. }
         | TerminationReason::NoImprovementPossible(_) => true,
         TerminationReason::LostPatience => false,
+        TerminationReason::User("jacobian") if target.budget_spent.get() => false,
         other => {
             return Err(FitError::Numerical {
                 reason: format!("{other:?}"),

@@ -6,8 +6,8 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::{
-    compare, describe, fit_model, not_refined_because, refine_shape, screen_model, signatures,
-    Comparison, Fitted, Prepared, RunResonance, ShapeRefinement, Signature, Where,
+    compare, describe, fit_model, refine_shape, screen_model, signatures, Comparison, Fitted,
+    Prepared, RunResonance, ShapeRefinement, Signature, Where,
 };
 use crate::error::IdentError;
 use crate::model::Model;
@@ -164,10 +164,6 @@ fn refine_or_note(
     e: usize,
     notes: &mut Vec<String>,
 ) -> Option<(ShapeRefinement, Fitted)> {
-    if let Some(why) = not_refined_because(prep, f.model.effects[e].effect) {
-        notes.push(why);
-        return None;
-    }
     match refine_shape(prep, f, e) {
         Ok(r) => r,
         Err(err) => {

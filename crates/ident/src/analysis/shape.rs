@@ -10,9 +10,9 @@
 //!   above).
 //! * **Start**: the parametric law's values at the knots ([`Effect::curve`]), so the
 //!   table starts where the catalog's formula ended.
-//! * **Fit**: every free parameter of the model together with the table's values
-//!   ([`fit_model`]: for sweeps a start refined on the analytic response, then least
-//!   squares on the simulation); a law that never falls is fitted through its
+//! * **Fit**: every free parameter of the model together with the table's values, by
+//!   least squares on the simulation from the parametric fit's values
+//!   ([`fit_model_from`], [`Start::Own`]); a law that never falls is fitted through its
 //!   non-negative rises from knot to knot.
 //! * **How many knots**: the number the data chooses by the Bayesian information
 //!   criterion among `K` in [`KNOT_COUNTS`], tried in turn while it improves; the refinement is kept only when its BIC
@@ -20,12 +20,12 @@
 //! * **Band**: the 95% band of each knot's value from the fit's covariance (the sum
 //!   of the rises below it for a non-decreasing law), `1.96` standard errors.
 
-use longreach_drive::effects::{DataKind, Effect, Site};
+use longreach_drive::effects::Effect;
 use rayon::prelude::*;
 use serde::Serialize;
 
 use super::diagnose::MIN_SCORE;
-use super::fit::{fit_model, Fitted};
+use super::fit::{fit_model_from, Fitted, Start};
 use super::prepare::Prepared;
 use crate::error::IdentError;
 use crate::model::{Owner, ShapeUse};
@@ -77,19 +77,6 @@ pub struct ShapeRefinement {
     pub kept: bool,
 }
 
-/// Why the law of `effect` is not refined on these data, if it is not: on a sweep a
-/// rope-law table makes the rig's rope non-linear, and each knot count then costs a
-/// time-domain fit of minutes (the budget for a whole diagnosis is 10 s), so
-/// the refinement is not run there yet; write `[effect.shape]` by hand and `fit` it.
-pub fn not_refined_because(prep: &Prepared<'_>, effect: &dyn Effect) -> Option<String> {
-    (prep.kind == DataKind::SineSweep && effect.site() == Site::RopeLaw).then(|| {
-        format!(
-            "The law of {} is not refined in its shape-free form on sweeps yet (a non-linear rope makes each time-domain fit of the rig take minutes); to try a table, write [effect.shape] in the model file (docs/models.md) and run fit. ",
-            effect.name()
-        )
-    })
-}
-
 /// The quantile `q` of sorted `v`.
 fn quantile(v: &[f64], q: f64) -> f64 {
     if v.is_empty() {
@@ -125,9 +112,8 @@ fn bic(ssr: f64, p: usize, n: f64) -> f64 {
 }
 
 /// Refines the law of effect number `e` of the fitted model `fitted` in its shape-free
-/// form (module docs). `None` when the effect has no shape, already holds one, is not
-/// refined on these data ([`not_refined_because`]) or the plant gives no values of its
-/// argument. The returned [`Fitted`] is the model with the
+/// form (module docs). `None` when the effect has no shape, already holds one or the
+/// plant gives no values of its argument. The returned [`Fitted`] is the model with the
 /// table when the refinement is kept, otherwise `fitted` unchanged.
 pub fn refine_shape(
     prep: &Prepared<'_>,
@@ -141,7 +127,7 @@ pub fn refine_shape(
     let Some(shape) = effect.shape() else {
         return Ok(None);
     };
-    if u.shape.is_some() || not_refined_because(prep, effect).is_some() {
+    if u.shape.is_some() {
         return Ok(None);
     }
     let n_runs = prep.runs.len();
@@ -189,7 +175,7 @@ pub fn refine_shape(
     for (knots, y) in &tables {
         let sh = ShapeUse::new(effect, shape, knots, y, true)?;
         let model = fitted.model.with_shape(e, sh);
-        let f = fit_model(prep, &model)?;
+        let f = fit_model_from(prep, &model, Start::Own)?;
         let p = f.model.fit_specs(n_runs).len();
         let b = bic(f.ssr, p, n);
         // more knots only while the criterion improves

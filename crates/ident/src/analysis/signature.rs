@@ -390,6 +390,7 @@ fn fit_sweep_term(
             gtol: 1e-10,
             patience: 40,
             diff_step: 1e-6,
+            max_evaluations: usize::MAX,
         },
     )
     .map_or(initial.clone(), |r| r.values);
@@ -411,6 +412,7 @@ fn fit_sweep_term(
             gtol: 1e-8,
             patience: 8,
             diff_step: 1e-5,
+            max_evaluations: usize::MAX,
         },
     )?;
     Ok((r.values[tf.n_base..].to_vec(), r.ssr))

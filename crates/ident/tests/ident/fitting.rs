@@ -418,3 +418,51 @@ fn failed_trial_points_are_rejected_steps() {
     .unwrap_err();
     assert!(e.to_string().contains("did not converge"), "{e}");
 }
+
+/// A residual problem that counts its evaluations.
+struct Counted<'a> {
+    inner: &'a Decay,
+    calls: std::sync::atomic::AtomicUsize,
+}
+
+impl Residuals for Counted<'_> {
+    fn residuals(&self, p: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
+        self.calls
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.inner.residuals(p, out)
+    }
+}
+
+/// The evaluation budget of a dear fit counts the Jacobians' evaluations: the optimiser
+/// stops at an accepted point below it (better than the start, not converged), and
+/// without the budget the same problem converges.
+#[test]
+fn evaluation_budget_counts_jacobians_and_stops_at_an_accepted_point() {
+    let decay = Decay::new(2.0, 1.5, 0.01, 7);
+    let specs = decay_specs();
+    let start_ssr = {
+        let mut r = Vec::new();
+        decay.residuals(&[0.7, 0.4], &mut r).unwrap();
+        r.iter().map(|v| v * v).sum::<f64>()
+    };
+    let p = specs.len();
+    let budget = 2 * (p + 1) + 2;
+    let counted = Counted {
+        inner: &decay,
+        calls: 0.into(),
+    };
+    let opts = FitOptions {
+        max_evaluations: budget,
+        ..FitOptions::default()
+    };
+    let r = fit(&counted, &specs, &opts).unwrap();
+    // the optimiser's own evaluations (the uncertainties' Jacobian at the end adds p + 1
+    // and is not part of the budget)
+    let optimiser = r.evaluations - (p + 1);
+    assert!(optimiser <= budget, "{optimiser} > {budget}");
+    assert!(!r.converged, "{}", r.termination);
+    assert!(r.ssr < start_ssr, "{} vs start {start_ssr}", r.ssr);
+    let free = fit(&decay, &specs, &FitOptions::default()).unwrap();
+    assert!(free.converged && free.evaluations > optimiser + p + 1);
+    assert!(free.ssr < r.ssr);
+}
