@@ -29,27 +29,27 @@ fn arm_of(text: &str) -> DrivenArm {
         .arm
 }
 
+/// A one-link arm from `urdf` driven by one pair of elastic stainless1 ropes, with the
+/// rest of its `[[transmission]]` table in `transmission` and `extra` appended
+/// (effects, payload).
+fn one_link(urdf: &Path, transmission: &str, extra: &str) -> String {
+    format!(
+        "[arm]\nurdf = \"{}\"\n[sim]\ndt_s = 0.001\nduration_s = 10.0\n[[transmission]]\n\
+         rope = \"stainless1\"\nlaw = \"elastic\"\n{transmission}\n{extra}\n",
+        urdf.display()
+    )
+}
+
 /// The rig as a one-joint arm: elastic stainless1, fixed tensioner at 300 N, `motor`
 /// (an inline table), `command`, and `extra` appended (effects, payload).
 fn rig(motor: &str, command: &str, extra: &str) -> String {
-    format!(
-        r#"[arm]
-urdf = "{}"
-[sim]
-dt_s = 0.001
-duration_s = 10.0
-[[transmission]]
-joint = "phi"
-rope = "stainless1"
-law = "elastic"
-joint_radius_m = 0.025
-length_m = 15.2
-preload_n = 300.0
-motor = {motor}
-command = {command}
-{extra}
-"#,
-        robot_path("rig/rig.urdf").display()
+    one_link(
+        &robot_path("rig/rig.urdf"),
+        &format!(
+            "joint = \"phi\"\njoint_radius_m = 0.025\nlength_m = 15.2\npreload_n = 300.0\n\
+             motor = {motor}\ncommand = {command}"
+        ),
+        extra,
     )
 }
 
@@ -276,24 +276,14 @@ fn boom_urdf(name: &str) -> PathBuf {
 /// The boom driven by one pair (r = 50 mm, 10 m of elastic stainless1 at 1000 N) from a
 /// servo, held at q = 0; `extra` appended.
 fn boom(name: &str, tensioner: &str, extra: &str) -> String {
-    format!(
-        r#"[arm]
-urdf = "{}"
-[sim]
-dt_s = 0.001
-duration_s = 1.0
-[[transmission]]
-joint = "j1"
-rope = "stainless1"
-law = "elastic"
-joint_radius_m = 0.05
-length_m = 10.0
-preload_n = 1000.0
-tensioner = "{tensioner}"
-motor = {{ mode = "servo", inertia_kg_m2 = 0.01, kp_n_m_per_rad = 500.0, kd_n_m_s_per_rad = 5.0 }}
-{extra}
-"#,
-        boom_urdf(name).display()
+    one_link(
+        &boom_urdf(name),
+        &format!(
+            "joint = \"j1\"\njoint_radius_m = 0.05\nlength_m = 10.0\npreload_n = 1000.0\n\
+             tensioner = \"{tensioner}\"\nmotor = {{ mode = \"servo\", inertia_kg_m2 = 0.01, \
+             kp_n_m_per_rad = 500.0, kd_n_m_s_per_rad = 5.0 }}"
+        ),
+        extra,
     )
 }
 
