@@ -51,6 +51,7 @@ pub fn anchor_chain(n_links: usize, kind: LawKind, dt_s: f64) -> Result<DrivenAr
         inertia_kg_m2: 0.0,
         damping_n_m_s: 0.0,
         mode: MotorMode::Kinematic,
+        friction: None,
     };
     let pairs = uniform_pairs(
         &spec,

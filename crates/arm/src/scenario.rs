@@ -14,7 +14,7 @@ use crate::transmission::{
     Tensioner,
 };
 use crate::{load_urdf, DrivenArm};
-use longreach_drive::effects::{Applied, Site};
+use longreach_drive::effects::{Applied, Payload, Site};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -27,6 +27,20 @@ struct ArmFile {
     transmission: Vec<toml::Table>,
     #[serde(default)]
     payload: Option<PayloadSection>,
+    #[serde(default)]
+    effect: Vec<ArmEffectSection>,
+}
+
+/// `[[effect]]`: a registered effect on the whole arm, at each of its sites.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ArmEffectSection {
+    name: String,
+    #[serde(default)]
+    params: Vec<f64>,
+    /// Only these joints (their pairs and bearings); default: every joint.
+    #[serde(default)]
+    joints: Option<Vec<String>>,
 }
 
 /// `[payload]`: a point mass carried by a link.
@@ -287,6 +301,27 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
     if !doc.arm.gravity {
         spec.gravity_m_s2 = nalgebra::Vector3::zeros();
     }
+    // Arm-wide effects (`[[effect]]`), each applied at its sites: the payload's first,
+    // before anything is built from the spec; the pairs' and joints' below.
+    let mut arm_effects = Vec::new();
+    for (i, e) in doc.effect.iter().enumerate() {
+        let field = format!("effect.{i}");
+        let a = registered(&e.name, &e.params, &field, &ferr)?;
+        if a.effect.site() == Site::Sensor {
+            return Err(ferr(
+                &field,
+                format!(
+                    "'{}' acts at a sensor, which an arm run does not model",
+                    e.name
+                ),
+                "keep sensor effects in model files for compare/diagnose",
+            ));
+        }
+        arm_effects.push((field, a));
+    }
+    let mut payload = Payload {
+        mass_kg: doc.payload.as_ref().map_or(0.0, |p| p.mass_kg),
+    };
     if let Some(pl) = &doc.payload {
         if !(pl.mass_kg.is_finite() && pl.mass_kg >= 0.0) {
             return Err(ferr(
@@ -302,23 +337,40 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
                 "give three finite coordinates in m, in the frame of the payload link",
             ));
         }
-        let link = pl
-            .link
-            .clone()
-            .or_else(|| spec.links.last().map(|l| l.name.clone()))
-            .unwrap_or_default();
-        let offset = nalgebra::Vector3::from(pl.offset_m.unwrap_or([0.0; 3]));
-        spec.add_payload(&link, pl.mass_kg, offset).map_err(|e| {
+    }
+    for (field, a) in &arm_effects {
+        a.apply_to_payload(&mut payload).map_err(|e| {
             ferr(
-                if pl.link.is_some() {
-                    "payload.link"
-                } else {
-                    "payload"
-                },
+                field,
                 e.to_string(),
-                "name a moving URDF link (or a link fixed to one, such as the tip) in payload.link",
+                "keep the payload (scenario's plus effects') >= 0 kg",
             )
         })?;
+    }
+    // The payload's point: `[payload]`'s link and offset; the tip frame's origin for a
+    // payload that only effects give. No payload at all: the arm as the URDF says.
+    if doc.payload.is_some() || payload.mass_kg != 0.0 {
+        let pl = doc.payload.as_ref();
+        let link = match pl {
+            Some(pl) => pl
+                .link
+                .clone()
+                .or_else(|| spec.links.last().map(|l| l.name.clone()))
+                .unwrap_or_default(),
+            None => spec.tip.name.clone(),
+        };
+        let offset = nalgebra::Vector3::from(pl.and_then(|p| p.offset_m).unwrap_or([0.0; 3]));
+        spec.add_payload(&link, payload.mass_kg, offset)
+            .map_err(|e| {
+                ferr(
+                    match pl {
+                        Some(p) if p.link.is_some() => "payload.link",
+                        _ => "payload",
+                    },
+                    e.to_string(),
+                    "name a moving URDF link (or a link fixed to one, such as the tip) in payload.link",
+                )
+            })?;
     }
     let n = spec.ndofs();
     let s = &doc.sim;
@@ -409,28 +461,19 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
         let mut applied = Vec::new();
         for (e_i, e) in sec.effects.iter().enumerate() {
             let field = f(&format!("effects.{e_i}"));
-            let eff = longreach_drive::effects::find(&e.name).ok_or_else(|| {
-                ferr(
+            let a = registered(&e.name, &e.params, &field, &ferr)?;
+            let eff = a.effect;
+            if matches!(eff.site(), Site::Link | Site::Sensor) {
+                return Err(ferr(
                     &field,
-                    format!("unknown effect '{}'", e.name),
-                    &format!(
-                        "use one of the registered effects: {}",
-                        longreach_drive::effects::names().join(", ")
+                    format!(
+                        "'{}' acts at the {} site, not at a transmission",
+                        e.name,
+                        eff.site().as_str()
                     ),
-                )
-            })?;
-            let values = if e.params.is_empty() {
-                eff.params().iter().map(|p| p.default).collect()
-            } else {
-                e.params.clone()
-            };
-            let a = Applied::new(eff, values).map_err(|err| {
-                ferr(
-                    &field,
-                    err.to_string(),
-                    "give one value per parameter, within its bounds",
-                )
-            })?;
+                    "give it as an arm-wide [[effect]] table (docs/arm.md)",
+                ));
+            }
             if eff.site() == Site::RelayPulley && sec.relay_friction.is_some() {
                 return Err(ferr(
                     &field,
@@ -559,6 +602,7 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
                 inertia_kg_m2: m.inertia_kg_m2,
                 damping_n_m_s: m.damping_n_m_s,
                 mode,
+                friction: None,
             },
             effects: Vec::new(),
             relay_friction,
@@ -581,6 +625,15 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
             commands[j] = parse_command(c, &f("command"), base, &ferr)?;
         }
     }
+    apply_arm_effects(
+        &doc.effect,
+        &arm_effects,
+        n,
+        &joint_of,
+        &mut pairs,
+        &mut joint_effects,
+        &ferr,
+    )?;
     let arm = DrivenArm::with_joint_effects(spec, pairs, joint_effects, commands, initial, s.dt_s)
         .map_err(|e| ferr("transmission", e.to_string(), "correct the named field"))?;
     Ok(ArmScenario {
@@ -588,6 +641,93 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
         sim: doc.sim,
         urdf_path,
     })
+}
+
+/// The registered effect `name` with `params` (in its order; none: its defaults),
+/// checked; errors name `field`.
+fn registered(
+    name: &str,
+    params: &[f64],
+    field: &str,
+    ferr: &dyn Fn(&str, String, &str) -> ScenarioError,
+) -> Result<Applied, ScenarioError> {
+    let eff = longreach_drive::effects::find(name).ok_or_else(|| {
+        ferr(
+            field,
+            format!("unknown effect '{name}'"),
+            &format!(
+                "use one of the registered effects: {}",
+                longreach_drive::effects::names().join(", ")
+            ),
+        )
+    })?;
+    let values = if params.is_empty() {
+        eff.params().iter().map(|p| p.default).collect()
+    } else {
+        params.to_vec()
+    };
+    Applied::new(eff, values).map_err(|err| {
+        ferr(
+            field,
+            err.to_string(),
+            "give one value per parameter, within its bounds",
+        )
+    })
+}
+
+/// Applies the arm-wide effects (`[[effect]]`, parsed into `applied`) at their pair and
+/// joint sites: the rope-law, relay and motor hooks to the pair of every joint in the
+/// effect's `joints` (default: every pair), the joint hook at each of those joints
+/// (default: every moving joint). An effect a transmission already names is refused.
+fn apply_arm_effects(
+    sections: &[ArmEffectSection],
+    applied: &[(String, Applied)],
+    ndofs: usize,
+    joint_of: &dyn Fn(&str, &str) -> Result<usize, ScenarioError>,
+    pairs: &mut [PairSpec],
+    joint_effects: &mut Vec<(usize, Applied)>,
+    ferr: &dyn Fn(&str, String, &str) -> ScenarioError,
+) -> Result<(), ScenarioError> {
+    for (sec, (field, a)) in sections.iter().zip(applied) {
+        let joints: Vec<usize> = match &sec.joints {
+            None => (0..ndofs).collect(),
+            Some(names) => names
+                .iter()
+                .enumerate()
+                .map(|(k, j)| joint_of(j, &format!("{field}.joints.{k}")))
+                .collect::<Result<_, _>>()?,
+        };
+        let name = a.effect.name();
+        let twice = |what: &str| {
+            ferr(
+                field,
+                format!("'{name}' given twice on {what}"),
+                "keep it in the transmission or in [[effect]], not both",
+            )
+        };
+        for pair in pairs.iter_mut().filter(|p| joints.contains(&p.joint)) {
+            if pair.effects.iter().any(|e| e == name)
+                || (a.effect.site() == Site::RelayPulley && pair.relay_friction.is_some())
+            {
+                return Err(twice(&format!("the pair of joint index {}", pair.joint)));
+            }
+            a.apply_to_pair(pair)
+                .map_err(|e| ferr(field, e.to_string(), "give values within the bounds"))?;
+            pair.effects.push(name.to_string());
+        }
+        if a.effect.site() == Site::Joint {
+            for &j in &joints {
+                if joint_effects
+                    .iter()
+                    .any(|(k, b)| *k == j && longreach_drive::effects::same(a.effect, b.effect))
+                {
+                    return Err(twice(&format!("joint index {j}")));
+                }
+                joint_effects.push((j, a.clone()));
+            }
+        }
+    }
+    Ok(())
 }
 
 fn parse_command(

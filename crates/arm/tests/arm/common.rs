@@ -105,6 +105,7 @@ pub fn servo(inertia: f64, kp: f64, kd: f64) -> MotorSpec {
             torque_limit_n_m: f64::INFINITY,
             gravity_feedforward: true,
         },
+        friction: None,
     }
 }
 
@@ -130,6 +131,7 @@ pub fn kinematic() -> MotorSpec {
         inertia_kg_m2: 0.0,
         damping_n_m_s: 0.0,
         mode: MotorMode::Kinematic,
+        friction: None,
     }
 }
 

@@ -19,6 +19,7 @@ fn energy_is_conserved_without_damping_or_gravity() {
             torque_limit_n_m: f64::INFINITY,
             gravity_feedforward: false,
         },
+        friction: None,
     };
     let arm = arm5_driven_preload(motor, vec![Command::Hold; 5], 2000.0)
         .with_gravity(Vector3::zeros())

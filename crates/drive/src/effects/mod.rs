@@ -11,11 +11,13 @@
 //! | [`Effect::on_law`] | rope law | change the constitutive law of every rope (span) it applies to |
 //! | [`Effect::on_pair`] | span, relay pulley, motor | change a rope pair's spec (relays, motor, tensioner) |
 //! | [`Effect::joint_force`] | joint | add a passive torque at a joint, with states of its own ([`JointForce`]) |
+//! | [`Effect::on_payload`] | link | change the arm's payload ([`Payload`]) before its dynamics are built |
 //! | [`Effect::sensor`] | sensor | transform what a sensor reports of a channel ([`SensorModel`]) |
 //!
 //! A plant applies them when it is built ([`Applied`]): the rig to its one pair and its
-//! output shaft ([`crate::RigModel::with_effects`]), the arm to each transmission's pair
-//! and each joint (crates/arm). The implicit step evaluates a joint force at every Newton
+//! output shaft ([`crate::RigModel::with_effects`]), the arm to each transmission's pair,
+//! each joint and its payload (crates/arm). A hook an effect does not override costs
+//! nothing at run time: the hooks run once, when the plant is built. The implicit step evaluates a joint force at every Newton
 //! iteration, with its derivatives in the Newton matrix, and advances its states once
 //! per step ([`crate::transmission::step`]).
 //!
@@ -77,13 +79,17 @@
 //! synthetic data, and the rig and every arm joint can carry it. The confusion-matrix
 //! study (`crates/ident/tests/confusion.rs`) picks it up too; give it parameter values
 //! the data can reveal. [`joint_friction`](JointFriction) is a complete example of a
-//! joint-site effect, [`relay_friction`](RelayFrictionEffect) of a pair-site one.
+//! joint-site effect, [`relay_friction`](RelayFrictionEffect) of a pair-site one,
+//! [`motor_friction`](MotorFrictionEffect) of a motor-site one (through `on_pair`, on the
+//! pair's motor) and [`payload_mass`](PayloadMass) of a link-site one (`on_payload`).
 
 mod extra_retardation;
 mod internal_damping;
 mod joint_friction;
+mod motor_friction;
 mod nonlinear_creep;
 mod nonlinear_stiffness;
+mod payload_mass;
 mod plastic_ratchet;
 mod relay_friction;
 mod sensor_delay;
@@ -92,8 +98,10 @@ pub use crate::transmission::{JointForce, JointTorque};
 pub use extra_retardation::ExtraRetardation;
 pub use internal_damping::InternalDamping;
 pub use joint_friction::{BearingFriction, JointFriction};
+pub use motor_friction::MotorFrictionEffect;
 pub use nonlinear_creep::NonlinearCreepEffect;
 pub use nonlinear_stiffness::NonlinearStiffness;
+pub use payload_mass::PayloadMass;
 pub use plastic_ratchet::PlasticRatchet;
 pub use relay_friction::RelayFrictionEffect;
 pub use sensor_delay::{Delay, SensorDelay};
@@ -127,7 +135,7 @@ pub enum Site {
     RelayPulley,
     /// A joint: the rig's output shaft, an arm's joint ([`Effect::joint_force`]).
     Joint,
-    /// A link of an arm (its compliance; no hook yet).
+    /// A link of an arm: its mass, the payload it carries ([`Effect::on_payload`]).
     Link,
     /// The motor of a rope pair ([`Effect::on_pair`]).
     Motor,
@@ -230,6 +238,11 @@ pub trait Effect: Sync + std::fmt::Debug {
     fn joint_force(&self, _args: Args<'_>) -> Result<Option<Arc<dyn JointForce>>, DriveError> {
         Ok(None)
     }
+    /// Link site: changes the payload an arm carries (added to its link's inertial before
+    /// anything is built from the arm: dynamics, gravity feed-forward, statics).
+    fn on_payload(&self, _args: Args<'_>, _payload: &mut Payload) -> Result<(), DriveError> {
+        Ok(())
+    }
     /// Sensor site: how the effect changes what a sensor reports (`None`: it does not).
     fn sensor(&self, _args: Args<'_>) -> Result<Option<Arc<dyn SensorModel>>, DriveError> {
         Ok(None)
@@ -320,6 +333,15 @@ pub trait SensorModel: Send + Sync + std::fmt::Debug {
     }
 }
 
+/// The payload of an arm as link-site effects see it ([`Effect::on_payload`]): a point
+/// mass at the point the arm's scenario names (its `[payload]` link and offset, the tip
+/// frame's origin without one). The arm adds it to that link's inertial when it is built.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Payload {
+    /// Mass, kg (the scenario's, 0 without one); must stay >= 0.
+    pub mass_kg: f64,
+}
+
 /// Every registered effect, one line each.
 pub static REGISTRY: &[&dyn Effect] = &[
     &nonlinear_stiffness::NonlinearStiffness,
@@ -330,6 +352,8 @@ pub static REGISTRY: &[&dyn Effect] = &[
     &relay_friction::RelayFrictionEffect,
     &joint_friction::JointFriction,
     &sensor_delay::SensorDelay,
+    &motor_friction::MotorFrictionEffect,
+    &payload_mass::PayloadMass,
 ];
 
 /// The registered effect called `name`.
@@ -449,6 +473,21 @@ impl Applied {
     /// The passive torque the effect adds at a joint, if any.
     pub fn joint_force(&self) -> Result<Option<Arc<dyn JointForce>>, DriveError> {
         self.effect.joint_force(self.args())
+    }
+
+    /// Applies the link-site hook to an arm's payload; the mass must stay >= 0.
+    pub fn apply_to_payload(&self, payload: &mut Payload) -> Result<(), DriveError> {
+        self.effect.on_payload(self.args(), payload)?;
+        if !(payload.mass_kg.is_finite() && payload.mass_kg >= 0.0) {
+            return Err(DriveError::BadParameter {
+                field: format!("{}.payload.mass_kg", self.effect.name()),
+                value: payload.mass_kg,
+                reason: "leaves a payload below 0 kg: the correction of a known payload \
+                         cannot take away more than its mass"
+                    .into(),
+            });
+        }
+        Ok(())
     }
 
     /// What the effect does to a sensor, if anything.

@@ -61,7 +61,7 @@ pub mod step;
 pub use load::{JointForce, JointLoad, JointTorque};
 pub use pair::{CompiledPair, PairAtRest, StaticPair};
 pub use relay::{CompiledRelays, RelayFriction, RelayRule, RelayState, RelayTorque};
-pub use spec::{MotorMode, MotorSpec, PairSpec, Relay, RoutingMatrix, Tensioner};
+pub use spec::{MotorFriction, MotorMode, MotorSpec, PairSpec, Relay, RoutingMatrix, Tensioner};
 pub use state::PlantState;
 pub use step::{
     Drivetrain, DrivetrainEnergy, JointSide, MotorInputs, MAX_KEPT_STEPS, NEWTON_TOLERANCE,

@@ -1,6 +1,7 @@
 //! The motor of a pair in the implicit step: a kinematic motor is held at its
-//! reference; a servo motor's equation `J a1 + b w1 = sat(kp (th_ref - th) + kd
-//! (thd_ref - thd) + ff) - r_m phi` is one unknown of the pair's local block.
+//! reference; a servo motor's equation `J a1 + b w1 + F(w1) = sat(kp (th_ref - th) + kd
+//! (thd_ref - thd) + ff) - r_m phi` is one unknown of the pair's local block (`F`: the
+//! motor-side friction, [`super::spec::MotorFriction`], when the motor has one).
 
 use super::spec::{MotorMode, MotorSpec};
 
@@ -65,12 +66,19 @@ pub(crate) fn servo_row(
         (f64::from(sat) * torque_limit_n_m, 0.0)
     };
     let (jm, bm) = (motor.inertia_kg_m2, motor.damping_n_m_s);
-    Some(ServoRow {
+    let mut row = ServoRow {
         raw_n_m,
         torque_n_m,
         residual_n_m: jm * a1 + bm * w1 - torque_n_m,
         diag: four_h2 * jm + two_h * bm + dservo,
-    })
+    };
+    if let Some(f) = &motor.friction {
+        // Motor-side friction (the `motor_friction` effect): the servo must overcome it.
+        let (tau, slope) = f.resisting(w1);
+        row.residual_n_m += tau;
+        row.diag += two_h * slope;
+    }
+    Some(row)
 }
 
 /// The saturation a servo's unclamped torque `raw_n_m` asks for: -1, 0 or +1.

@@ -61,6 +61,73 @@ pub struct MotorSpec {
     pub damping_n_m_s: f64,
     /// Kinematic or servo.
     pub mode: MotorMode,
+    /// Friction on the motor side (gearbox, bearings, seals) that the servo must
+    /// overcome; `None`: none (the step takes exactly the path it took before the field
+    /// existed). A kinematic motor follows its reference whatever it costs, so friction
+    /// there changes nothing.
+    pub friction: Option<MotorFriction>,
+}
+
+/// Coulomb plus viscous friction on a motor's axis: the torque
+/// `F_c tanh(w / w_s) + b w` opposes its rate `w` (the `motor_friction` effect).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MotorFriction {
+    /// Dry (Coulomb) torque `F_c`, N*m.
+    pub coulomb_n_m: f64,
+    /// Viscous torque per rate `b`, N*m*s/rad (on top of [`MotorSpec::damping_n_m_s`]).
+    pub viscous_n_m_s: f64,
+    /// Rate `w_s` over which the dry torque is regularised (tanh), rad/s.
+    pub slip_rate_rad_s: f64,
+}
+
+impl MotorFriction {
+    /// Default regularisation rate, rad/s: far below a motor's rates in a move, wide
+    /// enough for the implicit step's Newton iteration.
+    pub const DEFAULT_SLIP_RATE_RAD_S: f64 = 1e-2;
+
+    /// The friction torque resisting the rate `rate_rad_s` (positive along the rate, so
+    /// it enters the motor equation as `J a + b_m w + F = tau - r_m phi`) and its
+    /// derivative with respect to the rate.
+    #[inline]
+    pub fn resisting(&self, rate_rad_s: f64) -> (f64, f64) {
+        let x = rate_rad_s / self.slip_rate_rad_s;
+        // tanh rounds to +-1 beyond 22 slip rates: skip it there (bitwise the same).
+        let s = if x.abs() >= 22.0 {
+            x.signum()
+        } else {
+            x.tanh()
+        };
+        (
+            self.coulomb_n_m * s + self.viscous_n_m_s * rate_rad_s,
+            self.coulomb_n_m * (1.0 - s * s) / self.slip_rate_rad_s + self.viscous_n_m_s,
+        )
+    }
+
+    /// Checks that every value is finite, the torques >= 0 and the slip rate > 0.
+    pub fn validate(&self) -> Result<(), DriveError> {
+        for (field, v, ok) in [
+            ("coulomb_n_m", self.coulomb_n_m, self.coulomb_n_m >= 0.0),
+            (
+                "viscous_n_m_s",
+                self.viscous_n_m_s,
+                self.viscous_n_m_s >= 0.0,
+            ),
+            (
+                "slip_rate_rad_s",
+                self.slip_rate_rad_s,
+                self.slip_rate_rad_s > 0.0,
+            ),
+        ] {
+            if !(v.is_finite() && ok) {
+                return Err(DriveError::BadParameter {
+                    field: format!("motor_friction.{field}"),
+                    value: v,
+                    reason: "torques must be finite and >= 0, the slip rate > 0".into(),
+                });
+            }
+        }
+        Ok(())
+    }
 }
 
 impl MotorSpec {
@@ -70,6 +137,7 @@ impl MotorSpec {
             inertia_kg_m2: 0.0,
             damping_n_m_s: 0.0,
             mode: MotorMode::Kinematic,
+            friction: None,
         }
     }
 
@@ -227,6 +295,10 @@ impl PairSpec {
                     ),
                 ));
             }
+        }
+        if let Some(mf) = &self.motor.friction {
+            mf.validate()
+                .map_err(|e| bad("motor.friction", e.to_string()))?;
         }
         if let Some(rf) = &self.relay_friction {
             rf.validate().map_err(|e| {
