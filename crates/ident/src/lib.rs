@@ -12,7 +12,7 @@ pub mod metrics;
 pub mod sensors;
 
 pub use dataset::{
-    CyclicDataset, CyclicRun, CyclicSpecimen, Dataset, DatasetError, DatasetKind, Frf,
+    ArmChannel, ArmMovesDataset, ArmQuantity, ArmRun, CyclicDataset, CyclicRun, CyclicSpecimen, Dataset, DatasetError, DatasetKind, Frf,
     RelaxationDataset, RelaxationRun, RelaxationSpecimen, RigSpec, Segment, SweepDataset, SweepRun,
     Tensioner, WindowAlignment,
 };

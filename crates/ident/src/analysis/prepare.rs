@@ -127,6 +127,12 @@ impl<'a> Prepared<'a> {
                 .iter()
                 .map(|r| RunData::tension_run(&r.name, &r.time_s, &r.tension_n))
                 .collect(),
+            // The arm has many compared channels: `compare_arm` handles it.
+            DatasetKind::ArmMoves(_) => {
+                return Err(IdentError::NotForArm {
+                    what: "fit and diagnose",
+                })
+            }
         };
         Ok(Self {
             ds,
