@@ -390,7 +390,8 @@ impl ArmMovesOptions {
 /// it prints short).
 fn decimal(x: f64, decimals: i32) -> f64 {
     let s = 10f64.powi(decimals);
-    (x * s).round() / s
+    // `+ 0.0` turns a negative zero into 0 (files write "0", not "-0").
+    (x * s).round() / s + 0.0
 }
 
 /// The dataset the options describe with its commands and every channel it will
