@@ -12,7 +12,7 @@ use longreach_ident::analysis::{self, ArmComparison, Figures};
 use longreach_ident::model::Model;
 use longreach_ident::plant::Channels;
 use longreach_ident::synth::{self, ArmMove, ArmMovesOptions};
-use longreach_ident::{ArmQuantity, Dataset, DatasetKind};
+use longreach_ident::{Dataset, DatasetKind};
 use longreach_plot::{write_png, Figure, Panel, Series, Style};
 
 use crate::output::{write_atomic, write_atomic_with};
@@ -177,16 +177,9 @@ fn write_arm_report(dir: &Path, ds: &Dataset, c: &ArmComparison, sims: &[Channel
     for (run, sim) in am.runs.iter().zip(sims) {
         let mut panels = Vec::new();
         for (k, joint) in am.joints.iter().enumerate() {
-            let ch = run
-                .channels
-                .iter()
-                .find(|c| c.joint == Some(k) && c.quantity == ArmQuantity::Joint)
-                .or_else(|| {
-                    run.channels
-                        .iter()
-                        .find(|c| c.joint == Some(k) && c.quantity == ArmQuantity::Motor)
-                });
-            let Some(ch) = ch else { continue };
+            let Some(ch) = run.angle_channel(k).map(|i| &run.channels[i]) else {
+                continue;
+            };
             let Some(model) = sim.get(&ch.name) else {
                 continue;
             };

@@ -517,14 +517,16 @@ pub fn run_synth(a: &SynthArgs) -> Result<ExitCode> {
     // An arm dataset's plan is the dataset its model is read against; otherwise a
     // placeholder dataset only supplies the rope name for a model file's defaults.
     let arm_plan = match &a.arm {
-        Some(scenario) => Some(crate::arm_ident_cmd::arm_plan(&crate::arm_ident_cmd::ArmSynth {
-            scenario,
-            moves: &a.moves,
-            start_s: a.move_start_s,
-            duration_s: a.duration_s,
-            sample_hz: a.sample_hz,
-            seed: a.seed,
-        })?),
+        Some(scenario) => Some(crate::arm_ident_cmd::arm_plan(
+            &crate::arm_ident_cmd::ArmSynth {
+                scenario,
+                moves: &a.moves,
+                start_s: a.move_start_s,
+                duration_s: a.duration_s,
+                sample_hz: a.sample_hz,
+                seed: a.seed,
+            },
+        )?),
         None => None,
     };
     let rope = a.rope.clone();

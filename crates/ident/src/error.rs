@@ -96,12 +96,6 @@ pub enum IdentError {
         /// The dataset's kind, as spelled in `dataset.toml`.
         kind: &'static str,
     },
-    /// A step of the loop that does not handle arm datasets yet.
-    #[error("{what} does not handle arm datasets (kind = \"arm_moves\") yet; `longreach compare` does")]
-    NotForArm {
-        /// The step (`fit`, `diagnose`).
-        what: &'static str,
-    },
     /// A synthetic cyclic test's strain rate or sample interval is not positive.
     #[error("cyclic test: strain rate {strain_rate_per_s} 1/s and dt {dt_s} s must be > 0")]
     CyclicRates {

@@ -416,7 +416,9 @@ pub fn arm_plan(opt: &ArmMovesOptions) -> Result<crate::Dataset, IdentError> {
         )));
     }
     if !(opt.max_velocity_rad_s > 0.0 && opt.max_accel_rad_s2 > 0.0) {
-        return Err(bad("the move's speed and acceleration limits must be > 0".into()));
+        return Err(bad(
+            "the move's speed and acceleration limits must be > 0".into()
+        ));
     }
     if opt.moves.is_empty() {
         return Err(bad("no moves: give at least one (joint, move)".into()));
@@ -449,7 +451,10 @@ pub fn arm_plan(opt: &ArmMovesOptions) -> Result<crate::Dataset, IdentError> {
                 } else {
                     longreach_arm::Command::Hold
                 };
-                time_s.iter().map(|&t| decimal(c.angle_rad(q0, t), 7)).collect()
+                time_s
+                    .iter()
+                    .map(|&t| decimal(c.angle_rad(q0, t), 7))
+                    .collect()
             })
             .collect();
         let mut channels = Vec::new();
@@ -538,16 +543,20 @@ pub fn arm_moves(
                     .iter()
                     .map(|&x| decimal(enc.quantise(x), enc_decimals))
                     .collect(),
-                ArmQuantity::Tension1 | ArmQuantity::Tension2 => GaussianNoise::new(opt.tension_noise_n, seed)?
-                    .noisy(truth)
-                    .into_iter()
-                    .map(|x| decimal(x, 3))
-                    .collect(),
-                ArmQuantity::Tip(_) | ArmQuantity::TipAcc(_) => GaussianNoise::new(opt.tip_noise_m, seed)?
-                    .noisy(truth)
-                    .into_iter()
-                    .map(|x| decimal(x, 6))
-                    .collect(),
+                ArmQuantity::Tension1 | ArmQuantity::Tension2 => {
+                    GaussianNoise::new(opt.tension_noise_n, seed)?
+                        .noisy(truth)
+                        .into_iter()
+                        .map(|x| decimal(x, 3))
+                        .collect()
+                }
+                ArmQuantity::Tip(_) | ArmQuantity::TipAcc(_) => {
+                    GaussianNoise::new(opt.tip_noise_m, seed)?
+                        .noisy(truth)
+                        .into_iter()
+                        .map(|x| decimal(x, 6))
+                        .collect()
+                }
             };
         }
     }

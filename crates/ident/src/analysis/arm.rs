@@ -30,7 +30,9 @@
 use serde::Serialize;
 
 use super::prepare::noise_sigma_second_difference;
-use crate::dataset::{ArmMovesDataset, ArmQuantity, ArmRun, Dataset, DatasetKind, ARM_ENCODER_RESOLUTION_RAD};
+use crate::dataset::{
+    ArmMovesDataset, ArmQuantity, ArmRun, Dataset, DatasetKind, ARM_ENCODER_RESOLUTION_RAD,
+};
 use crate::error::IdentError;
 use crate::model::Model;
 use crate::plant::{ArmPlant, Channels, Plant};
@@ -137,7 +139,7 @@ pub struct ArmComparison {
 /// The phases of a run from its commands: first and last sample where any command
 /// changes (`None`: the commands never change).
 fn move_span(r: &ArmRun) -> Option<(usize, usize)> {
-    let n = r.len();
+    let n = r.time_s.len();
     let moving = |i: usize| {
         r.command_rad
             .iter()
@@ -195,7 +197,8 @@ fn angle_figures(
         .rev()
         .find(|&i| (x[i] - target).abs() > band)
         .map_or(start, |i| i + 1);
-    let settling_time_s = (settled_from < n).then(|| time_s[settled_from.max(start)] - time_s[start]);
+    let settling_time_s =
+        (settled_from < n).then(|| time_s[settled_from.max(start)] - time_s[start]);
     let sign = move_rad.signum();
     let over = x[start..]
         .iter()
@@ -226,23 +229,23 @@ pub fn residual_vibration(time_s: &[f64], x: &[f64], floor: f64) -> (Option<f64>
     let thr = 3.0 * floor;
     // Half-cycles: lobes beyond +thr or -thr, alternating.
     let mut lobes: Vec<(f64, f64)> = Vec::new(); // (time of extreme, |extreme|)
-    let mut sign = 0.0;
+    let mut sign = 0i8;
     let mut best = (0usize, 0.0f64);
     for (i, &v) in r.iter().enumerate() {
-        let s = if v > thr {
-            1.0
+        let s: i8 = if v > thr {
+            1
         } else if v < -thr {
-            -1.0
+            -1
         } else {
-            0.0
+            0
         };
-        if s != 0.0 && s != sign {
-            if sign != 0.0 {
+        if s != 0 && s != sign {
+            if sign != 0 {
                 lobes.push(extreme_at(time_s, &r, best.0));
             }
             sign = s;
             best = (i, v.abs());
-        } else if s == sign && sign != 0.0 && v.abs() > best.1 {
+        } else if s == sign && sign != 0 && v.abs() > best.1 {
             best = (i, v.abs());
         }
     }
@@ -285,7 +288,9 @@ fn extreme_at(time_s: &[f64], r: &[f64], i: usize) -> (f64, f64) {
 pub fn simulate_arm(ds: &Dataset, model: &Model) -> Result<Vec<Channels>, IdentError> {
     use rayon::prelude::*;
     let DatasetKind::ArmMoves(am) = &ds.kind else {
-        return Err(IdentError::NotAnArm { kind: ds.kind.name() });
+        return Err(IdentError::NotAnArm {
+            kind: ds.kind.name(),
+        });
     };
     let plant = ArmPlant::new(am);
     (0..am.runs.len())
@@ -298,7 +303,9 @@ pub fn simulate_arm(ds: &Dataset, model: &Model) -> Result<Vec<Channels>, IdentE
 /// `ds`.
 pub fn compare_arm(ds: &Dataset, sims: &[Channels]) -> Result<ArmComparison, IdentError> {
     let DatasetKind::ArmMoves(am) = &ds.kind else {
-        return Err(IdentError::NotAnArm { kind: ds.kind.name() });
+        return Err(IdentError::NotAnArm {
+            kind: ds.kind.name(),
+        });
     };
     let mut channels = Vec::new();
     let mut windows: Vec<ArmWhere> = Vec::new();
@@ -325,9 +332,8 @@ pub fn compare_arm(ds: &Dataset, sims: &[Channels]) -> Result<ArmComparison, Ide
             sigma_of.push(sigma);
             let sd = std_dev(&c.values).max(1e-300);
             let rms_error = rms(err.iter().copied());
-            let phase_ratio = |lo: usize, hi: usize| {
-                (hi > lo).then(|| rms(err[lo..hi].iter().copied()) / sigma)
-            };
+            let phase_ratio =
+                |lo: usize, hi: usize| (hi > lo).then(|| rms(err[lo..hi].iter().copied()) / sigma);
             let (ratio_move, ratio_settling) = match span {
                 Some((a, b)) => (phase_ratio(a, b + 1), phase_ratio(b + 1, err.len())),
                 None => (None, None),
@@ -370,16 +376,9 @@ pub fn compare_arm(ds: &Dataset, sims: &[Channels]) -> Result<ArmComparison, Ide
                 if move_rad.abs() < 1e-9 {
                     continue;
                 }
-                let angle = r
-                    .channels
-                    .iter()
-                    .position(|c| c.joint == Some(k) && c.quantity == ArmQuantity::Joint)
-                    .or_else(|| {
-                        r.channels
-                            .iter()
-                            .position(|c| c.joint == Some(k) && c.quantity == ArmQuantity::Motor)
-                    });
-                let Some(ci) = angle else { continue };
+                let Some(ci) = r.angle_channel(k) else {
+                    continue;
+                };
                 let c = &r.channels[ci];
                 let model = sim.get(&c.name).unwrap_or(&[]);
                 // A motor angle follows the joint through the transmission ratio.
@@ -397,7 +396,10 @@ pub fn compare_arm(ds: &Dataset, sims: &[Channels]) -> Result<ArmComparison, Ide
                         .iter()
                         .filter(|c| {
                             c.joint == Some(k)
-                                && matches!(c.quantity, ArmQuantity::Tension1 | ArmQuantity::Tension2)
+                                && matches!(
+                                    c.quantity,
+                                    ArmQuantity::Tension1 | ArmQuantity::Tension2
+                                )
                         })
                         .filter_map(|c| match src {
                             None => Some(c.values.as_slice()),
@@ -405,8 +407,18 @@ pub fn compare_arm(ds: &Dataset, sims: &[Channels]) -> Result<ArmComparison, Ide
                         })
                         .collect();
                     if !tens.is_empty() {
-                        f.peak_tension_n = Some(tens.iter().flat_map(|t| t.iter()).copied().fold(f64::MIN, f64::max));
-                        f.min_tension_n = Some(tens.iter().flat_map(|t| t.iter()).copied().fold(f64::MAX, f64::min));
+                        f.peak_tension_n = Some(
+                            tens.iter()
+                                .flat_map(|t| t.iter())
+                                .copied()
+                                .fold(f64::MIN, f64::max),
+                        );
+                        f.min_tension_n = Some(
+                            tens.iter()
+                                .flat_map(|t| t.iter())
+                                .copied()
+                                .fold(f64::MAX, f64::min),
+                        );
                     }
                 }
                 figures.push(MoveFigures {

@@ -5,8 +5,7 @@ use std::path::{Path, PathBuf};
 
 use super::{FORMAT, KINDS};
 
-const FORMAT_HINT: &str =
-    "the format longreach-measurement/1 is described in docs/measurements.md";
+const FORMAT_HINT: &str = "the format longreach-measurement/1 is described in docs/measurements.md";
 
 /// Everything that can go wrong reading or writing a dataset. Each message names the
 /// file, the line (where there is one) and the field or column, and says what to do.
@@ -213,7 +212,9 @@ pub enum DatasetError {
     },
     /// The arm scenario of an `arm_moves` dataset cannot be used (its own error says
     /// where and what to do).
-    #[error("{file}: line {line}: field `arm.scenario`: the arm scenario does not load: {message}")]
+    #[error(
+        "{file}: line {line}: field `arm.scenario`: the arm scenario does not load: {message}"
+    )]
     Scenario {
         /// The `dataset.toml` file.
         file: PathBuf,

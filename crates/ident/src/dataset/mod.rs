@@ -32,9 +32,9 @@ mod write;
 
 pub use error::DatasetError;
 pub use types::{
-    ArmChannel, ArmMovesDataset, ArmQuantity, ArmRun, CyclicDataset, CyclicRun, CyclicSpecimen, Dataset, DatasetKind, Frf, RelaxationDataset,
-    RelaxationRun, RelaxationSpecimen, RigSpec, Segment, SweepDataset, SweepRun, Tensioner,
-    WindowAlignment,
+    ArmChannel, ArmMovesDataset, ArmQuantity, ArmRun, CyclicDataset, CyclicRun, CyclicSpecimen,
+    Dataset, DatasetKind, Frf, RelaxationDataset, RelaxationRun, RelaxationSpecimen, RigSpec,
+    Segment, SweepDataset, SweepRun, Tensioner, WindowAlignment,
 };
 
 /// The only format string this reader understands (`format = ...` in `dataset.toml`).

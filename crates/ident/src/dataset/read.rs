@@ -10,10 +10,10 @@ use toml::Spanned;
 use super::error::csv_error;
 use super::types::mean_interval;
 use super::{
-    ArmChannel, ArmMovesDataset, ArmQuantity, ArmRun, CyclicDataset, CyclicRun, CyclicSpecimen, Dataset, DatasetError, DatasetKind, Frf,
-    RelaxationDataset, RelaxationRun, RelaxationSpecimen, RigSpec, SweepDataset, SweepRun,
-    Tensioner, CYCLIC_COLUMNS, DATASET_TOML, FORMAT, FRF_COLUMNS, RELAXATION_COLUMNS,
-    SAMPLING_TOLERANCE_REL, SWEEP_COLUMNS, SWEEP_TENSION_COLUMNS,
+    ArmChannel, ArmMovesDataset, ArmQuantity, ArmRun, CyclicDataset, CyclicRun, CyclicSpecimen,
+    Dataset, DatasetError, DatasetKind, Frf, RelaxationDataset, RelaxationRun, RelaxationSpecimen,
+    RigSpec, SweepDataset, SweepRun, Tensioner, CYCLIC_COLUMNS, DATASET_TOML, FORMAT, FRF_COLUMNS,
+    RELAXATION_COLUMNS, SAMPLING_TOLERANCE_REL, SWEEP_COLUMNS, SWEEP_TENSION_COLUMNS,
 };
 
 // ---------------------------------------------------------------------------------------
@@ -477,11 +477,12 @@ fn load_arm_moves(doc: &TomlDoc, dir: &Path) -> Result<ArmMovesDataset, DatasetE
     }
     let scenario_path = dir.join(&scenario);
     let line = doc.line_of(sc.span().start);
-    let arm = longreach_arm::scenario::load(&scenario_path).map_err(|e| DatasetError::Scenario {
-        file: doc.path.to_path_buf(),
-        line,
-        message: e.to_string(),
-    })?;
+    let arm =
+        longreach_arm::scenario::load(&scenario_path).map_err(|e| DatasetError::Scenario {
+            file: doc.path.to_path_buf(),
+            line,
+            message: e.to_string(),
+        })?;
     let joints: Vec<String> = arm
         .arm
         .pairs()
@@ -502,7 +503,13 @@ fn load_arm_moves(doc: &TomlDoc, dir: &Path) -> Result<ArmMovesDataset, DatasetE
             None => None,
         };
         let (file, path) = doc.run_file(dir, &rr.file, "file")?;
-        runs.push(read_arm_run(&path, file, &joints, payload_kg, rr.title.clone())?);
+        runs.push(read_arm_run(
+            &path,
+            file,
+            &joints,
+            payload_kg,
+            rr.title.clone(),
+        )?);
     }
     Ok(ArmMovesDataset {
         scenario,
@@ -559,7 +566,11 @@ fn read_arm_run(
     required.extend(joints.iter().map(|j| ArmQuantity::Motor.column(j)));
     let mut optional: Vec<(String, ArmQuantity, Option<usize>)> = Vec::new();
     for (k, j) in joints.iter().enumerate() {
-        for q in [ArmQuantity::Joint, ArmQuantity::Tension1, ArmQuantity::Tension2] {
+        for q in [
+            ArmQuantity::Joint,
+            ArmQuantity::Tension1,
+            ArmQuantity::Tension2,
+        ] {
             optional.push((q.column(j), q, Some(k)));
         }
     }
@@ -567,7 +578,11 @@ fn read_arm_run(
         optional.push((ArmQuantity::Tip(a).column(""), ArmQuantity::Tip(a), None));
     }
     for a in 0..3u8 {
-        optional.push((ArmQuantity::TipAcc(a).column(""), ArmQuantity::TipAcc(a), None));
+        optional.push((
+            ArmQuantity::TipAcc(a).column(""),
+            ArmQuantity::TipAcc(a),
+            None,
+        ));
     }
     let req: Vec<&str> = required.iter().map(String::as_str).collect();
     let opt: Vec<&str> = optional.iter().map(|o| o.0.as_str()).collect();

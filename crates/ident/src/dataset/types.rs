@@ -446,19 +446,20 @@ pub struct ArmRun {
 }
 
 impl ArmRun {
-    /// Number of samples.
-    pub fn len(&self) -> usize {
-        self.time_s.len()
-    }
-
-    /// True if the run holds no samples (never the case for a loaded run).
-    pub fn is_empty(&self) -> bool {
-        self.time_s.is_empty()
-    }
-
     /// Sampling interval (s).
     pub fn dt_s(&self) -> f64 {
         mean_interval(&self.time_s)
+    }
+
+    /// The channel that shows where driven joint `k` is: its joint angle when the run
+    /// measured it, else its motor angle (index into [`Self::channels`]).
+    pub fn angle_channel(&self, k: usize) -> Option<usize> {
+        let find = |q: ArmQuantity| {
+            self.channels
+                .iter()
+                .position(|c| c.joint == Some(k) && c.quantity == q)
+        };
+        find(ArmQuantity::Joint).or_else(|| find(ArmQuantity::Motor))
     }
 
     /// The channel called `name`.

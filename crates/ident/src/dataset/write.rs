@@ -10,8 +10,8 @@ use serde::Serialize;
 
 use super::error::csv_error;
 use super::{
-    ArmMovesDataset, CyclicDataset, Dataset, DatasetError, RelaxationDataset, SweepDataset, DATASET_TOML, FORMAT,
-    SWEEP_TENSION_COLUMNS,
+    ArmMovesDataset, CyclicDataset, Dataset, DatasetError, RelaxationDataset, SweepDataset,
+    DATASET_TOML, FORMAT, SWEEP_TENSION_COLUMNS,
 };
 
 #[derive(Serialize)]
@@ -422,7 +422,12 @@ impl ArmMovesDataset {
                 .iter()
                 .chain(run.channels.iter().map(|c| &c.values));
             let mut cols: Vec<(&str, &[f64])> = vec![("time_s", &run.time_s)];
-            cols.extend(names.iter().map(String::as_str).zip(data.map(Vec::as_slice)));
+            cols.extend(
+                names
+                    .iter()
+                    .map(String::as_str)
+                    .zip(data.map(Vec::as_slice)),
+            );
             w.add(&run.file, cols)?;
         }
         let plain = Path::new(&self.scenario)

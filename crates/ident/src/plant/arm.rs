@@ -32,6 +32,41 @@ use crate::dataset::{ArmMovesDataset, ArmQuantity, ArmRun};
 use crate::error::IdentError;
 use crate::model::PlantParams;
 
+/// Name of the arm plant's compared channel (first of its channels; what `fit` and
+/// `diagnose` fit): every measured channel minus its measured mean, over its noise,
+/// concatenated in the run's channel order ([`stacking`]).
+pub const ARM_STACKED: &str = "arm_stacked";
+
+/// How each channel of run `r` enters the compared channel: its measured mean and its
+/// noise standard deviation (encoders `q / sqrt(12)` at 1e-4 rad; tensions and the tip
+/// from the second differences of the measurement).
+pub fn stacking(r: &ArmRun) -> Vec<(f64, f64)> {
+    r.channels
+        .iter()
+        .map(|c| {
+            let n = c.values.len().max(1) as f64;
+            let mean = c.values.iter().sum::<f64>() / n;
+            let sigma = match c.quantity {
+                ArmQuantity::Motor | ArmQuantity::Joint => {
+                    crate::dataset::ARM_ENCODER_RESOLUTION_RAD / 12f64.sqrt()
+                }
+                _ => crate::metrics::noise_sigma_second_difference(&c.values).max(1e-12),
+            };
+            (mean, sigma)
+        })
+        .collect()
+}
+
+/// The compared channel of a run: channel `k`'s values (`values(k)`) minus its mean
+/// over its noise (`weights[k]`, from [`stacking`]), concatenated.
+pub fn stack<'v>(weights: &[(f64, f64)], values: impl Fn(usize) -> &'v [f64]) -> Vec<f64> {
+    weights
+        .iter()
+        .enumerate()
+        .flat_map(|(k, &(mean, sigma))| values(k).iter().map(move |v| (v - mean) / sigma))
+        .collect()
+}
+
 /// Longest simulation step of the arm plant, s (the arm scenarios' 1 ms).
 pub const ARM_MAX_STEP_S: f64 = 1e-3;
 
@@ -68,6 +103,8 @@ pub struct ArmPlant<'a> {
     /// The compiled scenario of each run (shared between runs of one payload), or why
     /// it does not compile.
     parts: Vec<Result<std::sync::Arc<ArmParts>, String>>,
+    /// Each run's [`stacking`].
+    weights: Vec<Vec<(f64, f64)>>,
 }
 
 /// The scenario text with the payload mass set to `mass_kg` (the rest of `[payload]`
@@ -111,7 +148,8 @@ impl<'a> ArmPlant<'a> {
             cache.push((key, built.clone()));
             parts.push(built);
         }
-        Self { ds, parts }
+        let weights = ds.runs.iter().map(stacking).collect();
+        Self { ds, parts, weights }
     }
 
     /// The arm of run `run` with the numbers `params`, for steps of `dt_s`.
@@ -147,7 +185,11 @@ impl<'a> ArmPlant<'a> {
             }
         }
         let mut joint_effects = parts.joint_effects.clone();
-        for a in params.effects.iter().filter(|a| a.effect.site() == Site::Joint) {
+        for a in params
+            .effects
+            .iter()
+            .filter(|a| a.effect.site() == Site::Joint)
+        {
             for pair in &parts.pairs {
                 joint_effects.retain(|(j, b)| {
                     *j != pair.joint || !longreach_drive::effects::same(a.effect, b.effect)
@@ -192,7 +234,13 @@ fn run_commands(
 }
 
 /// One sample of every channel of `r` from the state.
-fn record(arm: &DrivenArm, st: &DrivenState, r: &ArmRun, tip: &mut [Vec<f64>; 3], out: &mut [Vec<f64>]) {
+fn record(
+    arm: &DrivenArm,
+    st: &DrivenState,
+    r: &ArmRun,
+    tip: &mut [Vec<f64>; 3],
+    out: &mut [Vec<f64>],
+) {
     let need_tip = r.channels.iter().any(|c| c.quantity.is_tip());
     let tip_now = if need_tip {
         arm.tip_m(&st.q_rad).ok()
@@ -240,8 +288,12 @@ fn second_difference(x: &[f64], dt_s: f64) -> Vec<f64> {
 
 /// Simulates the arm `arm` on run `r`: the channels of `r` at its sample times (tip
 /// accelerations by second differences of the sampled tip positions).
-pub(crate) fn simulate_run(arm: &DrivenArm, r: &ArmRun, substeps: usize) -> Result<Vec<Vec<f64>>, IdentError> {
-    let n = r.len();
+pub(crate) fn simulate_run(
+    arm: &DrivenArm,
+    r: &ArmRun,
+    substeps: usize,
+) -> Result<Vec<Vec<f64>>, IdentError> {
+    let n = r.time_s.len();
     let mut out: Vec<Vec<f64>> = r.channels.iter().map(|_| Vec::with_capacity(n)).collect();
     let mut tip: [Vec<f64>; 3] = Default::default();
     let mut st = arm.initial_state();
@@ -268,7 +320,11 @@ pub(crate) fn simulate_run(arm: &DrivenArm, r: &ArmRun, substeps: usize) -> Resu
 impl ArmPlant<'_> {
     /// The arm of run `run` built with `params` at the run's simulation step, and its
     /// substeps per sample.
-    pub fn arm_for(&self, params: &PlantParams, run: usize) -> Result<(DrivenArm, usize), IdentError> {
+    pub fn arm_for(
+        &self,
+        params: &PlantParams,
+        run: usize,
+    ) -> Result<(DrivenArm, usize), IdentError> {
         let dt = self.ds.runs[run].dt_s();
         let k = substeps_for(dt);
         Ok((self.build(params, run, dt / k as f64)?, k))
@@ -284,7 +340,8 @@ impl Plant for ArmPlant<'_> {
         self.ds.runs.len()
     }
 
-    /// Every measured channel of the run, in the run's order (the motor angles first).
+    /// The compared channel ([`ARM_STACKED`]), then every measured channel of the run
+    /// in the run's order (the motor angles first).
     fn simulate(&self, params: &PlantParams, run: usize) -> Result<Channels, IdentError> {
         let r = &self.ds.runs[run];
         let (arm, k) = self.arm_for(params, run)?;
@@ -300,6 +357,14 @@ impl Plant for ArmPlant<'_> {
                 .collect(),
         );
         apply_sensors(params, &r.time_s, &mut channels)?;
+        let stacked = stack(&self.weights[run], |k| channels.0[k].values.as_slice());
+        channels.0.insert(
+            0,
+            Channel {
+                name: Cow::Borrowed(ARM_STACKED),
+                values: stacked,
+            },
+        );
         Ok(channels)
     }
 }
