@@ -77,14 +77,34 @@ pub enum SynthKind {
     SineSweep,
     /// Tension relaxation at constant strain.
     Relaxation,
+    /// Moves of a long-reach arm (give `--arm SCENARIO` and `--move`s).
+    ArmMoves,
 }
 
 /// `longreach synth`.
 #[derive(Debug, Args)]
 pub struct SynthArgs {
-    /// Dataset kind.
+    /// Dataset kind (`arm-moves` when `--arm` is given).
     #[arg(long, value_enum)]
-    kind: SynthKind,
+    kind: Option<SynthKind>,
+    /// Arm scenario (`longreach run` format) of an arm dataset; the dataset carries a
+    /// copy (URDF path relative to it, commands dropped).
+    #[arg(long)]
+    arm: Option<PathBuf>,
+    /// One run per move of an arm dataset: `JOINT:RAD[:PAYLOAD_KG]`, a trapezoidal move
+    /// of one joint (0.2 rad/s, 0.5 rad/s^2) from the scenario's initial pose, every
+    /// other joint held. Repeatable.
+    #[arg(long = "move")]
+    moves: Vec<String>,
+    /// Start of every arm move [s].
+    #[arg(long, default_value_t = 0.5)]
+    move_start_s: f64,
+    /// Length of every arm run [s].
+    #[arg(long, default_value_t = 8.0)]
+    duration_s: f64,
+    /// Sample rate of arm runs [Hz].
+    #[arg(long, default_value_t = 50.0)]
+    sample_hz: f64,
     /// Output dataset folder (written atomically).
     #[arg(long)]
     out: PathBuf,
@@ -321,6 +341,15 @@ fn print_comparison(c: &Comparison) {
 /// Runs `compare`: simulates the model at its values (no fitting).
 pub fn run_compare(a: &CompareArgs) -> Result<ExitCode> {
     let (ds, model) = load(&a.data)?;
+    if matches!(ds.kind, longreach_ident::DatasetKind::ArmMoves(_)) {
+        return crate::arm_ident_cmd::run_compare_arm(
+            &ds,
+            &model,
+            a.data.json.as_deref(),
+            a.report.as_deref(),
+            a.rerun.rerun.is_some(),
+        );
+    }
     let rec = a.rerun.recorder(
         &format!("compare {}", a.data.dataset.display()),
         &rerun_args::default_rrd(None, &a.data.dataset, "_compare"),
@@ -487,16 +516,44 @@ fn parse_effect(s: &str) -> Result<(&'static dyn effects::Effect, Vec<f64>)> {
 
 /// Runs `synth`.
 pub fn run_synth(a: &SynthArgs) -> Result<ExitCode> {
-    // A placeholder dataset only supplies the rope name for a model file's defaults.
+    let kind = match (a.kind, &a.arm) {
+        (Some(SynthKind::ArmMoves) | None, Some(_)) => SynthKind::ArmMoves,
+        (Some(k @ (SynthKind::SineSweep | SynthKind::Relaxation)), Some(_)) => {
+            bail!("--arm makes an arm dataset: drop --kind {k:?} or --arm")
+        }
+        (Some(SynthKind::ArmMoves), None) => {
+            bail!("--kind arm-moves needs --arm SCENARIO (an arm scenario of `longreach run`)")
+        }
+        (Some(k), None) => k,
+        (None, None) => bail!("give --kind sine-sweep | relaxation, or --arm SCENARIO"),
+    };
+    // An arm dataset's plan is the dataset its model is read against; otherwise a
+    // placeholder dataset only supplies the rope name for a model file's defaults.
+    let arm_plan = match &a.arm {
+        Some(scenario) => Some(crate::arm_ident_cmd::arm_plan(
+            &crate::arm_ident_cmd::ArmSynth {
+                scenario,
+                moves: &a.moves,
+                start_s: a.move_start_s,
+                duration_s: a.duration_s,
+                sample_hz: a.sample_hz,
+                seed: a.seed,
+            },
+        )?),
+        None => None,
+    };
     let rope = a.rope.clone();
+    let base_ds = match &arm_plan {
+        Some((plan, _)) => plan.clone(),
+        None => placeholder_dataset(&rope),
+    };
     let mut model = match &a.model {
         Some(p) => {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("cannot read model file {}", p.display()))?;
-            let ds = placeholder_dataset(&rope);
-            Model::from_toml(&text, &p.display().to_string(), &ds).map_err(message)?
+            Model::from_toml(&text, &p.display().to_string(), &base_ds).map_err(message)?
         }
-        None => Model::baseline(&placeholder_dataset(&rope)).map_err(message)?,
+        None => Model::baseline(&base_ds).map_err(message)?,
     };
     for s in &a.effects {
         let (e, v) = parse_effect(s)?;
@@ -518,7 +575,13 @@ pub fn run_synth(a: &SynthArgs) -> Result<ExitCode> {
             .file_name()
             .map_or("synthetic".into(), |n| n.to_string_lossy().into_owned())
     });
-    match a.kind {
+    match kind {
+        SynthKind::ArmMoves => {
+            let (plan, opt) = arm_plan
+                .as_ref()
+                .ok_or_else(|| anyhow!("--kind arm-moves needs --arm SCENARIO"))?;
+            crate::arm_ident_cmd::write_arm_synth(&model, plan, opt, &a.out, &title)?;
+        }
         SynthKind::SineSweep => {
             let mut opt = synth::SweepOptions::paper(&model.rope, a.seed);
             opt.runs = a

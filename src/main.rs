@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod arm_ident_cmd;
 mod batch_cmd;
 mod bode;
 mod ident_cmd;

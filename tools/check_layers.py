@@ -19,7 +19,7 @@ ALLOWED = {
     "longreach-drive": {"longreach-rope"},
     "longreach-scenario": {"longreach-rope", "longreach-drive"},
     "longreach-plot": set(),
-    "longreach-ident": {"longreach-rope", "longreach-drive", "longreach-scenario"},
+    "longreach-ident": {"longreach-rope", "longreach-drive", "longreach-scenario", "longreach-arm"},
     "longreach-arm": {"longreach-rope", "longreach-drive", "longreach-scenario"},
     "longreach-viz": {"longreach-arm", "longreach-drive", "longreach-ident", "longreach-rope"},
     "longreach": None,  # the CLI: any crate of the workspace

@@ -167,3 +167,65 @@ fn stiffening_example_names_the_effect_and_error_falls_3x() {
     let after = json(&cj)["nrmse"].as_f64().unwrap();
     assert!(after * 3.0 <= base, "{after} vs {base}");
 }
+
+/// Arm datasets end to end: `synth --arm` writes one (a copy of the scenario inside),
+/// `compare` reads it back at its floors with figures, JSON and report; a hidden joint
+/// friction shows; a move of an undriven joint is refused with a message.
+#[test]
+fn arm_synth_compare_report() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scenario =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/arm_dyneema2_base_trapezoid.toml");
+    let out = tmp.path().join("arm");
+    let synth = |extra: &[&str]| {
+        let mut args = vec!["synth", "--arm", scenario.to_str().unwrap(), "--out"];
+        args.push(out.to_str().unwrap());
+        args.extend(["--duration-s", "3"]);
+        args.extend(extra);
+        longreach(&args)
+    };
+    let (ok, _, err) = synth(&["--move", "j5:0.2"]);
+    assert!(ok, "{err}");
+    assert!(out.join("arm.toml").is_file() && out.join("move_01.csv").is_file());
+    let j = tmp.path().join("c.json");
+    let rep = tmp.path().join("rep");
+    let (ok, stdout, err) = longreach(&[
+        "compare",
+        out.to_str().unwrap(),
+        "--json",
+        j.to_str().unwrap(),
+        "--report",
+        rep.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(
+        stdout.contains("settling 2% [s]") && stdout.contains("joint_j5_rad"),
+        "{stdout}"
+    );
+    let c = json(&j);
+    let worst = c["worst_ratio"].as_f64().unwrap();
+    assert!(worst <= 1.5, "control at {worst}x its floor");
+    assert_eq!(c["channels"].as_array().unwrap().len(), 23);
+    let f = &c["figures"][0];
+    assert_eq!(f["joint"], "j5");
+    let (a, b) = (
+        f["measured"]["overshoot_pct"].as_f64().unwrap(),
+        f["model"]["overshoot_pct"].as_f64().unwrap(),
+    );
+    assert!((a - b).abs() < 0.5, "overshoot {a} vs {b}");
+    assert!(rep.join("report.md").is_file() && rep.join("arm_move_01.png").is_file());
+    // The same move with joint friction hidden: far above the floor.
+    let (ok, _, err) = synth(&["--move", "j5:0.2", "--effect", "joint_friction=1,0.1,0.01"]);
+    assert!(ok, "{err}");
+    let (ok, _, err) = longreach(&[
+        "compare",
+        out.to_str().unwrap(),
+        "--json",
+        j.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(json(&j)["worst_ratio"].as_f64().unwrap() > 10.0);
+    // A move of a joint the scenario does not drive.
+    let (ok, _, err) = synth(&["--move", "j9:0.1"]);
+    assert!(!ok && err.contains("`j9` is not driven"), "{err}");
+}

@@ -217,6 +217,12 @@ pub struct ArmScenario {
     pub sim: SimSection,
     /// The URDF file used.
     pub urdf_path: PathBuf,
+    /// The registered effects the transmissions put at their joints (joint index, the
+    /// effect with its values), as given to [`DrivenArm::with_joint_effects`] (the
+    /// URDF's `<dynamics friction>` is not among them: the arm adds it itself). With
+    /// the compiled pairs' specs ([`DrivenArm::pairs`]) they rebuild the arm with other
+    /// numbers (the measurement loop's arm plant).
+    pub joint_effects: Vec<(usize, Applied)>,
 }
 
 /// Merges `defaults` into `t` (keys absent from `t`; nested tables recursively).
@@ -634,12 +640,20 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
         &mut joint_effects,
         &ferr,
     )?;
-    let arm = DrivenArm::with_joint_effects(spec, pairs, joint_effects, commands, initial, s.dt_s)
-        .map_err(|e| ferr("transmission", e.to_string(), "correct the named field"))?;
+    let arm = DrivenArm::with_joint_effects(
+        spec,
+        pairs,
+        joint_effects.clone(),
+        commands,
+        initial,
+        s.dt_s,
+    )
+    .map_err(|e| ferr("transmission", e.to_string(), "correct the named field"))?;
     Ok(ArmScenario {
         arm,
         sim: doc.sim,
         urdf_path,
+        joint_effects,
     })
 }
 

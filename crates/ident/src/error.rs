@@ -64,6 +64,38 @@ pub enum IdentError {
         /// The dataset's kind, as spelled in `dataset.toml`.
         kind: &'static str,
     },
+    /// The arm scenario of an arm dataset does not build with the run's payload or the
+    /// model's numbers.
+    #[error("run {run}: the arm does not build: {message}")]
+    ArmBuild {
+        /// The run's name (file stem).
+        run: String,
+        /// The scenario's or the arm's complaint.
+        message: String,
+    },
+    /// Simulating the arm on one run failed.
+    #[error("run {run}: the arm simulation failed at t = {time_s:.4} s: {message}; check the recorded commands (a jump the servo cannot follow) or the model's values")]
+    ArmSimulation {
+        /// The run's name (file stem).
+        run: String,
+        /// Simulated time of the failure (s).
+        time_s: f64,
+        /// The arm's complaint.
+        message: String,
+    },
+    /// The arm scenario of a synthetic arm dataset does not load, or the moves asked of
+    /// it are not possible.
+    #[error("arm synth: {message}")]
+    ArmScenario {
+        /// What is wrong, with the scenario's own file, line, field and fix.
+        message: String,
+    },
+    /// An arm-only computation was asked of another kind of dataset.
+    #[error("not an arm dataset (kind = \"{kind}\")")]
+    NotAnArm {
+        /// The dataset's kind, as spelled in `dataset.toml`.
+        kind: &'static str,
+    },
     /// A synthetic cyclic test's strain rate or sample interval is not positive.
     #[error("cyclic test: strain rate {strain_rate_per_s} 1/s and dt {dt_s} s must be > 0")]
     CyclicRates {

@@ -12,9 +12,9 @@ pub mod metrics;
 pub mod sensors;
 
 pub use dataset::{
-    CyclicDataset, CyclicRun, CyclicSpecimen, Dataset, DatasetError, DatasetKind, Frf,
-    RelaxationDataset, RelaxationRun, RelaxationSpecimen, RigSpec, Segment, SweepDataset, SweepRun,
-    Tensioner, WindowAlignment,
+    ArmChannel, ArmMovesDataset, ArmQuantity, ArmRun, CyclicDataset, CyclicRun, CyclicSpecimen,
+    Dataset, DatasetError, DatasetKind, Frf, RelaxationDataset, RelaxationRun, RelaxationSpecimen,
+    RigSpec, Segment, SweepDataset, SweepRun, Tensioner, WindowAlignment,
 };
 pub use error::IdentError;
 pub use fitting::{fit, FitError, FitOptions, FitResult, ParamSpec, ResidualError, Residuals};

@@ -639,3 +639,24 @@ pub fn power_spectrum(signal: &[f64], dt_s: f64) -> Result<(Vec<f64>, Vec<f64>)>
         .collect();
     Ok((freq, psd))
 }
+
+/// Noise standard deviation of a smooth signal from its second differences:
+/// `d_i = x_i - (x_{i-1} + x_{i+1})/2` is `N(0, 1.5 sigma^2)` for white Gaussian noise
+/// on a signal whose curvature over two samples is small, so
+/// `sigma = median |d_i| / (0.6745 sqrt 1.5)` (the median absolute deviation: robust
+/// to the few samples where the signal itself bends sharply, such as the step of a
+/// relaxation test at t = 0 or a decay faster than the sampling; a mean of squares
+/// would count those as noise and raise the floor).
+pub fn noise_sigma_second_difference(x: &[f64]) -> f64 {
+    if x.len() < 3 {
+        return 0.0;
+    }
+    let mut d: Vec<f64> = x
+        .windows(3)
+        .map(|w| (w[1] - 0.5 * (w[0] + w[2])).abs())
+        .collect();
+    let mid = d.len() / 2;
+    let (_, median, _) = d.select_nth_unstable_by(mid, f64::total_cmp);
+    // 0.67449 = Phi^-1(3/4): the median of |N(0, 1)|
+    *median / (0.674_489_750_196_081_7 * 1.5f64.sqrt())
+}

@@ -155,6 +155,12 @@ pub struct PlantParams {
     /// Effects at sites other than the rope law, for the plant to apply when it is
     /// built.
     pub effects: Vec<Applied>,
+    /// The base parameters with their values for this run, in the model's order
+    /// (already applied to `law`): a plant with ropes of its own (the arm, one law per
+    /// pair) applies them to each of its laws.
+    pub base: Vec<(BaseParam, f64)>,
+    /// The rope-law effects (already applied to `law`), for the same plants.
+    pub rope_effects: Vec<Applied>,
 }
 
 impl ParamDef {
@@ -346,6 +352,7 @@ pub fn data_kind(ds: &Dataset) -> DataKind {
         DatasetKind::SineSweep(_) => DataKind::SineSweep,
         DatasetKind::Relaxation(_) => DataKind::Relaxation,
         DatasetKind::Cyclic(_) => DataKind::Cyclic,
+        DatasetKind::ArmMoves(_) => DataKind::ArmMoves,
     }
 }
 
@@ -355,6 +362,7 @@ pub fn dataset_rope(ds: &Dataset) -> &str {
         DatasetKind::SineSweep(s) => &s.rig.rope,
         DatasetKind::Relaxation(r) => &r.specimen.rope,
         DatasetKind::Cyclic(c) => &c.specimen.rope,
+        DatasetKind::ArmMoves(a) => &a.rope,
     }
 }
 
@@ -400,7 +408,9 @@ impl Model {
         let law_kind = LawKind::default_for(&params);
         let law = RopeLaw::from_params(&params, law_kind)?;
         let base = match ds.kind {
-            DatasetKind::SineSweep(_) => vec![ParamDef::base(BaseParam::K1Scale, 1.0, 0.2, 5.0)],
+            DatasetKind::SineSweep(_) | DatasetKind::ArmMoves(_) => {
+                vec![ParamDef::base(BaseParam::K1Scale, 1.0, 0.2, 5.0)]
+            }
             _ => law_constants(&law),
         };
         Ok(Model {
@@ -534,10 +544,13 @@ impl Model {
             law: self.law.clone(),
             output_damping_n_m_s: None,
             effects: Vec::new(),
+            base: Vec::new(),
+            rope_effects: Vec::new(),
         };
         for b in &self.base {
             if let Role::Base(param) = b.role {
                 param.apply(b.value_for(run), &mut p)?;
+                p.base.push((param, b.value_for(run)));
             }
         }
         for u in &self.effects {
@@ -560,6 +573,7 @@ impl Model {
                         effect: u.effect.name(),
                         source,
                     })?;
+                p.rope_effects.push(applied);
             } else {
                 p.effects.push(applied);
             }

@@ -1,5 +1,7 @@
 //! Synthetic datasets in the measurement format (stepped-sine sweeps, relaxation and
-//! cyclic tests) from any model, with any effects hidden and realistic sensors (0.18 deg encoders, Gaussian tension noise), seeded.
+//! cyclic tests, arm moves) from any model, with any effects hidden and realistic
+//! sensors (0.18 deg encoders on the rig, 1e-4 rad on the arm, Gaussian tension and
+//! tip noise), seeded.
 
 use longreach_drive::{InputSignal, SteppedSine};
 
@@ -110,7 +112,7 @@ pub fn sweep(model: &Model, opt: &SweepOptions) -> Result<SweepDataset, IdentErr
             .map_err(IdentError::Drive)?;
         // What the sensors report of it (sensor-site effects hidden in the data).
         let mut reported = Channels(vec![Channel {
-            name: "output_angle_rad",
+            name: "output_angle_rad".into(),
             values: std::mem::take(&mut s.output_rad),
         }]);
         apply_sensors(&params, &time_s, &mut reported)?;
@@ -311,4 +313,252 @@ pub fn cyclic(model: &Model, opt: &CyclicOptions) -> Result<CyclicDataset, Ident
         },
         runs,
     })
+}
+
+// ---------------------------------------------------------------------------------------
+// Arm moves
+
+/// One synthetic move: a trapezoidal move of one joint (its run holds every other
+/// joint).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArmMove {
+    /// The moved joint (a joint the scenario drives).
+    pub joint: String,
+    /// The move from the initial angle, rad.
+    pub move_rad: f64,
+    /// Start of the move, s.
+    pub start_s: f64,
+    /// Payload of the run (overrides the scenario's), kg.
+    pub payload_kg: Option<f64>,
+}
+
+/// Options of a synthetic arm dataset (`arm_moves`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArmMovesOptions {
+    /// The arm scenario (the `longreach run` format); the dataset carries a copy.
+    pub scenario: std::path::PathBuf,
+    /// One run per move.
+    pub moves: Vec<ArmMove>,
+    /// Speed limit of the trapezoidal moves, rad/s.
+    pub max_velocity_rad_s: f64,
+    /// Acceleration limit, rad/s^2.
+    pub max_accel_rad_s2: f64,
+    /// Length of each run, s.
+    pub duration_s: f64,
+    /// Sample rate, Hz.
+    pub sample_hz: f64,
+    /// Encoder resolution (motor and joint angles), rad.
+    pub encoder_resolution_rad: f64,
+    /// Write the joint angles.
+    pub joint_channels: bool,
+    /// Write the rope tensions at the motor pulleys.
+    pub tension_channels: bool,
+    /// Write the tip position.
+    pub tip_channels: bool,
+    /// Tension noise standard deviation, N.
+    pub tension_noise_n: f64,
+    /// Tip position noise standard deviation (a tracker), m.
+    pub tip_noise_m: f64,
+    /// Seed of the noise.
+    pub seed: u64,
+}
+
+impl ArmMovesOptions {
+    /// The example datasets' sensors and schedule: 50 Hz, 8 s per move starting at
+    /// 0.5 s, 0.2 rad/s and 0.5 rad/s^2, 1e-4 rad encoders on motors and joints, 0.5 N
+    /// tension noise, 0.2 mm tip noise; no moves yet.
+    pub fn new(scenario: impl Into<std::path::PathBuf>, seed: u64) -> Self {
+        Self {
+            scenario: scenario.into(),
+            moves: Vec::new(),
+            max_velocity_rad_s: 0.2,
+            max_accel_rad_s2: 0.5,
+            duration_s: 8.0,
+            sample_hz: 50.0,
+            encoder_resolution_rad: crate::dataset::ARM_ENCODER_RESOLUTION_RAD,
+            joint_channels: true,
+            tension_channels: true,
+            tip_channels: true,
+            tension_noise_n: 0.5,
+            tip_noise_m: 2e-4,
+            seed,
+        }
+    }
+}
+
+/// `x` rounded to `decimals` decimals, as the nearest double to that decimal (so that
+/// it prints short).
+fn decimal(x: f64, decimals: i32) -> f64 {
+    let s = 10f64.powi(decimals);
+    // `+ 0.0` turns a negative zero into 0 (files write "0", not "-0").
+    (x * s).round() / s + 0.0
+}
+
+/// The dataset the options describe with its commands and every channel it will
+/// measure, the channels still zero: the skeleton [`arm_moves`] fills (and the dataset
+/// a model file for it is read against).
+pub fn arm_plan(opt: &ArmMovesOptions) -> Result<crate::Dataset, IdentError> {
+    use crate::dataset::{ArmChannel, ArmMovesDataset, ArmQuantity, ArmRun, DatasetKind};
+    let sc = longreach_arm::scenario::load(&opt.scenario).map_err(|e| IdentError::ArmScenario {
+        message: e.to_string(),
+    })?;
+    let arm = &sc.arm;
+    let joints: Vec<String> = arm
+        .pairs()
+        .iter()
+        .map(|p| arm.spec().joints[p.spec.joint].name.clone())
+        .collect();
+    let bad = |what: String| IdentError::ArmScenario { message: what };
+    if !(opt.sample_hz.is_finite() && opt.sample_hz > 0.0 && opt.duration_s > 0.0) {
+        return Err(bad(format!(
+            "sample rate {} Hz and duration {} s must be > 0",
+            opt.sample_hz, opt.duration_s
+        )));
+    }
+    if !(opt.max_velocity_rad_s > 0.0 && opt.max_accel_rad_s2 > 0.0) {
+        return Err(bad(
+            "the move's speed and acceleration limits must be > 0".into()
+        ));
+    }
+    if opt.moves.is_empty() {
+        return Err(bad("no moves: give at least one (joint, move)".into()));
+    }
+    let n = (opt.duration_s * opt.sample_hz).round() as usize + 1;
+    let time_s: Vec<f64> = (0..n).map(|i| i as f64 / opt.sample_hz).collect();
+    let mut runs = Vec::new();
+    for (r, mv) in opt.moves.iter().enumerate() {
+        let k = joints.iter().position(|j| *j == mv.joint).ok_or_else(|| {
+            bad(format!(
+                "move {}: joint `{}` is not driven by the scenario (driven: {})",
+                r + 1,
+                mv.joint,
+                joints.join(", ")
+            ))
+        })?;
+        let command_rad: Vec<Vec<f64>> = arm
+            .pairs()
+            .iter()
+            .enumerate()
+            .map(|(p, pair)| {
+                let q0 = arm.initial_q_rad()[pair.spec.joint];
+                let c = if p == k {
+                    longreach_arm::Command::Trapezoid {
+                        to_rad: q0 + mv.move_rad,
+                        start_s: mv.start_s,
+                        max_velocity_rad_s: opt.max_velocity_rad_s,
+                        max_accel_rad_s2: opt.max_accel_rad_s2,
+                    }
+                } else {
+                    longreach_arm::Command::Hold
+                };
+                time_s
+                    .iter()
+                    .map(|&t| decimal(c.angle_rad(q0, t), 7))
+                    .collect()
+            })
+            .collect();
+        let mut channels = Vec::new();
+        let mut add = |q: ArmQuantity, joint: Option<usize>| {
+            channels.push(ArmChannel {
+                name: q.column(joint.map_or("", |j| joints[j].as_str())),
+                quantity: q,
+                joint,
+                values: vec![0.0; n],
+            })
+        };
+        for j in 0..joints.len() {
+            add(ArmQuantity::Motor, Some(j));
+        }
+        for j in 0..joints.len() {
+            if opt.joint_channels {
+                add(ArmQuantity::Joint, Some(j));
+            }
+            if opt.tension_channels {
+                add(ArmQuantity::Tension1, Some(j));
+                add(ArmQuantity::Tension2, Some(j));
+            }
+        }
+        if opt.tip_channels {
+            for a in 0..3 {
+                add(ArmQuantity::Tip(a), None);
+            }
+        }
+        let file = format!("move_{:02}.csv", r + 1);
+        runs.push(ArmRun {
+            name: format!("move_{:02}", r + 1),
+            file,
+            title: Some(format!("{} {:+} rad", mv.joint, mv.move_rad)),
+            payload_kg: mv.payload_kg,
+            time_s: time_s.clone(),
+            command_rad,
+            channels,
+        });
+    }
+    let rope = arm
+        .pairs()
+        .first()
+        .map(|p| p.spec.rope_name.clone())
+        .unwrap_or_default();
+    Ok(crate::Dataset {
+        dir: std::path::PathBuf::new(),
+        title: String::new(),
+        kind: DatasetKind::ArmMoves(ArmMovesDataset {
+            scenario: "arm.toml".into(),
+            scenario_path: opt.scenario.clone(),
+            joints,
+            rope,
+            runs,
+        }),
+    })
+}
+
+/// Simulates `model` on the moves of `plan` (from [`arm_plan`]) and reports what the
+/// sensors of `opt` would: encoders quantise the motor and joint angles, tensions and
+/// the tip get Gaussian noise (seeded, one stream per run and channel). Write the
+/// result with [`crate::dataset::ArmMovesDataset::write`].
+pub fn arm_moves(
+    model: &Model,
+    plan: &crate::Dataset,
+    opt: &ArmMovesOptions,
+) -> Result<crate::dataset::ArmMovesDataset, IdentError> {
+    use crate::dataset::{ArmQuantity, DatasetKind};
+    use crate::plant::{ArmPlant, Plant};
+    let DatasetKind::ArmMoves(am) = &plan.kind else {
+        return Err(IdentError::NotAnArm {
+            kind: plan.kind.name(),
+        });
+    };
+    let enc = Encoder::new(opt.encoder_resolution_rad)?;
+    // The encoder's decimals, for short numbers in the files.
+    let enc_decimals = (-opt.encoder_resolution_rad.log10()).ceil() as i32;
+    let plant = ArmPlant::new(am);
+    let mut out = am.clone();
+    for (r, run) in out.runs.iter_mut().enumerate() {
+        let sim = plant.simulate(&model.plant_params(r)?, r)?;
+        for (ci, c) in run.channels.iter_mut().enumerate() {
+            let truth = sim.get(&c.name).unwrap_or(&[]);
+            let seed = opt.seed.wrapping_mul(1_000_003) + (r as u64) * 1000 + ci as u64;
+            c.values = match c.quantity {
+                ArmQuantity::Motor | ArmQuantity::Joint => truth
+                    .iter()
+                    .map(|&x| decimal(enc.quantise(x), enc_decimals))
+                    .collect(),
+                ArmQuantity::Tension1 | ArmQuantity::Tension2 => {
+                    GaussianNoise::new(opt.tension_noise_n, seed)?
+                        .noisy(truth)
+                        .into_iter()
+                        .map(|x| decimal(x, 3))
+                        .collect()
+                }
+                ArmQuantity::Tip(_) | ArmQuantity::TipAcc(_) => {
+                    GaussianNoise::new(opt.tip_noise_m, seed)?
+                        .noisy(truth)
+                        .into_iter()
+                        .map(|x| decimal(x, 6))
+                        .collect()
+                }
+            };
+        }
+    }
+    Ok(out)
 }

@@ -67,7 +67,7 @@ impl Effect for JointFriction {
         Site::Joint
     }
     fn applies_to(&self, kind: DataKind) -> bool {
-        kind == DataKind::SineSweep
+        matches!(kind, DataKind::SineSweep | DataKind::ArmMoves)
     }
     fn present_in(&self, target: &Target<'_>) -> bool {
         target.holds_joint_effect(self)

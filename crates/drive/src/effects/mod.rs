@@ -122,6 +122,8 @@ pub enum DataKind {
     Relaxation,
     /// Cyclic load-strain test.
     Cyclic,
+    /// Moves of a long-reach arm measured through its own sensors.
+    ArmMoves,
 }
 
 /// Where an effect acts in a plant.

@@ -63,10 +63,10 @@ impl Effect for MotorFrictionEffect {
     fn site(&self) -> Site {
         Site::Motor
     }
-    fn applies_to(&self, _kind: DataKind) -> bool {
-        // The rig's input is kinematic (sweeps), specimens have no motor: none of the
-        // kinds so far can reveal it. Arm moves (`arm_moves`) will.
-        false
+    fn applies_to(&self, kind: DataKind) -> bool {
+        // The rig's input is kinematic (sweeps), specimens have no motor: only an arm's
+        // servos (`arm_moves`) can reveal it.
+        kind == DataKind::ArmMoves
     }
     fn present_in(&self, target: &Target<'_>) -> bool {
         target.pair.is_some_and(|p| p.motor.friction.is_some())
@@ -126,5 +126,6 @@ mod tests {
             .on_pair(Args::values(&[-1.0, 0.2, 1e-3]), &mut pair)
             .is_err());
         assert!(!MotorFrictionEffect.applies_to(DataKind::SineSweep));
+        assert!(MotorFrictionEffect.applies_to(DataKind::ArmMoves));
     }
 }

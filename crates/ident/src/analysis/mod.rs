@@ -11,6 +11,9 @@
 //!   the simulation) or only screened at their starting values ([`screen_model`]);
 //! * `compare.rs`: a model measured against the data ([`compare`]: the error per run and
 //!   per test frequency, where it concentrates, residual checks, resonances);
+//! * `arm.rs`: a model measured against an arm dataset ([`compare_arm`]: every channel
+//!   of every run against its noise floor, where the error concentrates, the vibration
+//!   figures of every move);
 //! * `diagnose.rs`: the baseline and every applicable registered effect fitted, ranked,
 //!   and the missing effect named when the evidence is decisive ([`diagnose`]);
 //! * `shape.rs`: an effect's law refined in its shape-free form (a table over the range
@@ -18,6 +21,7 @@
 //! * `signature.rs`: the residual's signatures, each with the simplest term that would
 //!   produce it, its size and the share of the excess error it removes ([`signatures`]).
 
+mod arm;
 mod compare;
 mod diagnose;
 mod fit;
@@ -25,6 +29,10 @@ mod prepare;
 mod shape;
 mod signature;
 
+pub use arm::{
+    arm_dataset, compare_arm, residual_vibration, simulate_arm, ArmComparison, ArmWhere,
+    ChannelError, Figures, MoveFigures, ARM_WINDOW_S,
+};
 pub use compare::{
     compare, Comparison, FrequencyError, ResidualChecks, RunError, RunResonance, Where,
 };

@@ -6,6 +6,7 @@ use rayon::prelude::*;
 
 use crate::dataset::{Dataset, DatasetKind};
 use crate::error::IdentError;
+pub use crate::metrics::noise_sigma_second_difference;
 use crate::model::{data_kind, Model};
 use crate::plant::{plant_for, Channels, Plant};
 use crate::sensors::ENCODER_RESOLUTION_RAD;
@@ -66,27 +67,6 @@ pub struct Prepared<'a> {
     pub plant: Box<dyn Plant + 'a>,
 }
 
-/// Noise standard deviation of a smooth signal from its second differences:
-/// `d_i = x_i - (x_{i-1} + x_{i+1})/2` is `N(0, 1.5 sigma^2)` for white Gaussian noise
-/// on a signal whose curvature over two samples is small, so
-/// `sigma = median |d_i| / (0.6745 sqrt 1.5)` (the median absolute deviation: robust
-/// to the few samples where the signal itself bends sharply, such as the step of a
-/// relaxation test at t = 0 or a decay faster than the sampling; a mean of squares
-/// would count those as noise and raise the floor).
-pub fn noise_sigma_second_difference(x: &[f64]) -> f64 {
-    if x.len() < 3 {
-        return 0.0;
-    }
-    let mut d: Vec<f64> = x
-        .windows(3)
-        .map(|w| (w[1] - 0.5 * (w[0] + w[2])).abs())
-        .collect();
-    let mid = d.len() / 2;
-    let (_, median, _) = d.select_nth_unstable_by(mid, f64::total_cmp);
-    // 0.67449 = Phi^-1(3/4): the median of |N(0, 1)|
-    *median / (0.674_489_750_196_081_7 * 1.5f64.sqrt())
-}
-
 impl<'a> Prepared<'a> {
     /// Prepares `ds`: analysis windows and noise floors.
     pub fn new(ds: &'a Dataset) -> Result<Self, IdentError> {
@@ -126,6 +106,29 @@ impl<'a> Prepared<'a> {
                 .runs
                 .iter()
                 .map(|r| RunData::tension_run(&r.name, &r.time_s, &r.tension_n))
+                .collect(),
+            // Every channel at once, each over its noise (`plant::ARM_STACKED`); the
+            // samples' times repeat once per channel.
+            DatasetKind::ArmMoves(am) => am
+                .runs
+                .iter()
+                .map(|r| {
+                    let w = crate::plant::stacking(r);
+                    let measured = crate::plant::stack(&w, |k| r.channels[k].values.as_slice());
+                    RunData {
+                        name: r.name.clone(),
+                        time_s: (0..w.len())
+                            .flat_map(|_| r.time_s.iter().copied())
+                            .collect(),
+                        idx: (0..measured.len()).collect(),
+                        measured,
+                        segments: Vec::new(),
+                        dt_s: r.dt_s(),
+                        mean_tension_n: None,
+                        amplitude_rad: None,
+                        noise_sigma: 1.0,
+                    }
+                })
                 .collect(),
         };
         Ok(Self {

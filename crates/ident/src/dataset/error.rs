@@ -143,7 +143,7 @@ pub enum DatasetError {
         time_s: f64,
     },
     /// A series that needs a fixed sampling rate is irregularly sampled.
-    #[error("{file}: line {line}: column `time_s`: irregular sampling, interval {interval_s} s differs from the mean interval {dt_s} s by more than {tolerance_rel} (relative); a sine sweep needs a fixed sampling rate -- resample the data")]
+    #[error("{file}: line {line}: column `time_s`: irregular sampling, interval {interval_s} s differs from the mean interval {dt_s} s by more than {tolerance_rel} (relative); sine sweeps and arm moves need a fixed sampling rate -- resample the data")]
     IrregularSampling {
         /// The CSV file.
         file: PathBuf,
@@ -209,6 +209,39 @@ pub enum DatasetError {
         cycles: f64,
         /// The run's settling time.
         settle_s: f64,
+    },
+    /// The arm scenario of an `arm_moves` dataset cannot be used (its own error says
+    /// where and what to do).
+    #[error(
+        "{file}: line {line}: field `arm.scenario`: the arm scenario does not load: {message}"
+    )]
+    Scenario {
+        /// The `dataset.toml` file.
+        file: PathBuf,
+        /// 1-based line of `scenario = ...`.
+        line: usize,
+        /// The scenario reader's message (file, line, field and fix of the scenario).
+        message: String,
+    },
+    /// A column of an arm run names a joint the arm scenario does not drive.
+    #[error("{file}: line 1: column `{column}` names joint `{joint}`, which the arm scenario does not drive (driven joints: {driven}); rename the column after a driven joint or drop it", driven = .driven.join(", "))]
+    UndrivenJoint {
+        /// The CSV file.
+        file: PathBuf,
+        /// The column.
+        column: String,
+        /// The joint it names.
+        joint: String,
+        /// The joints the scenario drives.
+        driven: Vec<String>,
+    },
+    /// A column appears twice in the header of a run file.
+    #[error("{file}: line 1: column `{column}` appears twice; keep one")]
+    DuplicateColumn {
+        /// The CSV file.
+        file: PathBuf,
+        /// The column.
+        column: String,
     },
     /// Data given to a writer is inconsistent.
     #[error("cannot write dataset {dir}: {what}; fix the data before writing")]

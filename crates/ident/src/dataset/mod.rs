@@ -1,11 +1,14 @@
 //! Reader and writer for measurement datasets in the format `longreach-measurement/1`.
 //!
 //! A dataset is a folder holding one `dataset.toml` and the CSV files it names
-//! (format description: `docs/measurements.md`). Three kinds exist:
+//! (format description: `docs/measurements.md`). Four kinds exist:
 //!
 //! * `sine_sweep`: the paper's cable-pulley rig (Sec. IV, Fig. 7/8), stepped-sine runs,
 //! * `relaxation`: tension relaxation at constant strain (Sec. III, eq. 6),
-//! * `cyclic`: load-strain test (Sec. II).
+//! * `cyclic`: load-strain test (Sec. II),
+//! * `arm_moves`: moves of a long-reach arm (an arm scenario, `crates/arm`) measured
+//!   through its own sensors (motor encoders, optionally joint encoders, rope tensions,
+//!   the tip).
 //!
 //! The reader ignores keys and columns it does not know and refuses, with an error naming
 //! the file, the line and the column or field, anything it cannot use. Every error
@@ -29,9 +32,9 @@ mod write;
 
 pub use error::DatasetError;
 pub use types::{
-    CyclicDataset, CyclicRun, CyclicSpecimen, Dataset, DatasetKind, Frf, RelaxationDataset,
-    RelaxationRun, RelaxationSpecimen, RigSpec, Segment, SweepDataset, SweepRun, Tensioner,
-    WindowAlignment,
+    ArmChannel, ArmMovesDataset, ArmQuantity, ArmRun, CyclicDataset, CyclicRun, CyclicSpecimen,
+    Dataset, DatasetKind, Frf, RelaxationDataset, RelaxationRun, RelaxationSpecimen, RigSpec,
+    Segment, SweepDataset, SweepRun, Tensioner, WindowAlignment,
 };
 
 /// The only format string this reader understands (`format = ...` in `dataset.toml`).
@@ -41,11 +44,14 @@ pub const FORMAT: &str = "longreach-measurement/1";
 pub const DATASET_TOML: &str = "dataset.toml";
 
 /// The dataset kinds this reader understands, as spelled in `kind = ...`.
-pub const KINDS: [&str; 3] = ["sine_sweep", "relaxation", "cyclic"];
+pub const KINDS: [&str; 4] = ["sine_sweep", "relaxation", "cyclic", "arm_moves"];
 
 /// Relative tolerance on the sampling interval of a series that needs a fixed rate:
 /// every interval must equal the mean interval within `SAMPLING_TOLERANCE_REL * dt`.
 pub const SAMPLING_TOLERANCE_REL: f64 = 1e-6;
+
+/// Encoder resolution of the angle columns of arm datasets (motor and joint), rad.
+pub const ARM_ENCODER_RESOLUTION_RAD: f64 = 1e-4;
 
 /// Required columns of a sine-sweep run file.
 pub const SWEEP_COLUMNS: [&str; 5] = [

@@ -10,10 +10,10 @@ use toml::Spanned;
 use super::error::csv_error;
 use super::types::mean_interval;
 use super::{
-    CyclicDataset, CyclicRun, CyclicSpecimen, Dataset, DatasetError, DatasetKind, Frf,
-    RelaxationDataset, RelaxationRun, RelaxationSpecimen, RigSpec, SweepDataset, SweepRun,
-    Tensioner, CYCLIC_COLUMNS, DATASET_TOML, FORMAT, FRF_COLUMNS, RELAXATION_COLUMNS,
-    SAMPLING_TOLERANCE_REL, SWEEP_COLUMNS, SWEEP_TENSION_COLUMNS,
+    ArmChannel, ArmMovesDataset, ArmQuantity, ArmRun, CyclicDataset, CyclicRun, CyclicSpecimen,
+    Dataset, DatasetError, DatasetKind, Frf, RelaxationDataset, RelaxationRun, RelaxationSpecimen,
+    RigSpec, SweepDataset, SweepRun, Tensioner, CYCLIC_COLUMNS, DATASET_TOML, FORMAT, FRF_COLUMNS,
+    RELAXATION_COLUMNS, SAMPLING_TOLERANCE_REL, SWEEP_COLUMNS, SWEEP_TENSION_COLUMNS,
 };
 
 // ---------------------------------------------------------------------------------------
@@ -85,6 +85,25 @@ struct RawCyclicSpecimen {
 #[derive(Deserialize)]
 struct RawFileRun {
     file: Spanned<String>,
+}
+
+#[derive(Deserialize)]
+struct RawArmMoves {
+    arm: RawArmSection,
+    #[serde(default)]
+    run: Vec<RawArmRun>,
+}
+
+#[derive(Deserialize)]
+struct RawArmSection {
+    scenario: Spanned<String>,
+}
+
+#[derive(Deserialize)]
+struct RawArmRun {
+    file: Spanned<String>,
+    payload_kg: Option<Spanned<f64>>,
+    title: Option<String>,
 }
 
 /// Context for reporting problems in `dataset.toml`.
@@ -292,6 +311,7 @@ impl Dataset {
             "sine_sweep" => DatasetKind::SineSweep(load_sweep(&doc, &dir)?),
             "relaxation" => DatasetKind::Relaxation(load_relaxation(&doc, &dir)?),
             "cyclic" => DatasetKind::Cyclic(load_cyclic(&doc, &dir)?),
+            "arm_moves" => DatasetKind::ArmMoves(load_arm_moves(&doc, &dir)?),
             other => {
                 return Err(DatasetError::UnknownKind {
                     file: toml_path.clone(),
@@ -441,6 +461,180 @@ fn load_cyclic(doc: &TomlDoc, dir: &Path) -> Result<CyclicDataset, DatasetError>
         });
     }
     Ok(CyclicDataset { specimen, runs })
+}
+
+fn load_arm_moves(doc: &TomlDoc, dir: &Path) -> Result<ArmMovesDataset, DatasetError> {
+    let raw: RawArmMoves = doc.parse(doc.src)?;
+    let sc = &raw.arm.scenario;
+    let scenario = sc.get_ref().clone();
+    if scenario.trim().is_empty() {
+        return Err(doc.invalid(
+            sc.span(),
+            "scenario",
+            "\"\"".into(),
+            "must name an arm scenario file (the `longreach run` format)",
+        ));
+    }
+    let scenario_path = dir.join(&scenario);
+    let line = doc.line_of(sc.span().start);
+    let arm =
+        longreach_arm::scenario::load(&scenario_path).map_err(|e| DatasetError::Scenario {
+            file: doc.path.to_path_buf(),
+            line,
+            message: e.to_string(),
+        })?;
+    let joints: Vec<String> = arm
+        .arm
+        .pairs()
+        .iter()
+        .map(|p| arm.arm.spec().joints[p.spec.joint].name.clone())
+        .collect();
+    let rope = arm
+        .arm
+        .pairs()
+        .first()
+        .map(|p| p.spec.rope_name.clone())
+        .unwrap_or_default();
+    doc.check_runs(&raw.run)?;
+    let mut runs = Vec::with_capacity(raw.run.len());
+    for rr in &raw.run {
+        let payload_kg = match &rr.payload_kg {
+            Some(p) => Some(doc.non_negative(p, "payload_kg")?),
+            None => None,
+        };
+        let (file, path) = doc.run_file(dir, &rr.file, "file")?;
+        runs.push(read_arm_run(
+            &path,
+            file,
+            &joints,
+            payload_kg,
+            rr.title.clone(),
+        )?);
+    }
+    Ok(ArmMovesDataset {
+        scenario,
+        scenario_path,
+        joints,
+        rope,
+        runs,
+    })
+}
+
+/// The joint a per-joint column of an arm run names (`command_J_rad`, `motor_J_rad`,
+/// `joint_J_rad`, `tension_J_1_n`, `tension_J_2_n`), if it is one.
+fn column_joint(column: &str) -> Option<&str> {
+    let j = ["command_", "motor_", "joint_"]
+        .iter()
+        .find_map(|p| column.strip_prefix(p).and_then(|r| r.strip_suffix("_rad")))
+        .or_else(|| {
+            let r = column.strip_prefix("tension_")?;
+            r.strip_suffix("_1_n").or_else(|| r.strip_suffix("_2_n"))
+        })?;
+    (!j.is_empty()).then_some(j)
+}
+
+/// Reads one run file of an arm dataset: every per-joint column must name a driven
+/// joint, every driven joint needs its command and motor columns.
+fn read_arm_run(
+    path: &Path,
+    file: String,
+    joints: &[String],
+    payload_kg: Option<f64>,
+    title: Option<String>,
+) -> Result<ArmRun, DatasetError> {
+    let headers = csv_headers(path)?;
+    for (i, h) in headers.iter().enumerate() {
+        if headers[..i].contains(h) {
+            return Err(DatasetError::DuplicateColumn {
+                file: path.to_path_buf(),
+                column: h.clone(),
+            });
+        }
+        if let Some(j) = column_joint(h) {
+            if !joints.iter().any(|d| d == j) {
+                return Err(DatasetError::UndrivenJoint {
+                    file: path.to_path_buf(),
+                    column: h.clone(),
+                    joint: j.to_string(),
+                    driven: joints.to_vec(),
+                });
+            }
+        }
+    }
+    let mut required = vec!["time_s".to_string()];
+    required.extend(joints.iter().map(|j| format!("command_{j}_rad")));
+    required.extend(joints.iter().map(|j| ArmQuantity::Motor.column(j)));
+    let mut optional: Vec<(String, ArmQuantity, Option<usize>)> = Vec::new();
+    for (k, j) in joints.iter().enumerate() {
+        for q in [
+            ArmQuantity::Joint,
+            ArmQuantity::Tension1,
+            ArmQuantity::Tension2,
+        ] {
+            optional.push((q.column(j), q, Some(k)));
+        }
+    }
+    for a in 0..3u8 {
+        optional.push((ArmQuantity::Tip(a).column(""), ArmQuantity::Tip(a), None));
+    }
+    for a in 0..3u8 {
+        optional.push((
+            ArmQuantity::TipAcc(a).column(""),
+            ArmQuantity::TipAcc(a),
+            None,
+        ));
+    }
+    let req: Vec<&str> = required.iter().map(String::as_str).collect();
+    let opt: Vec<&str> = optional.iter().map(|o| o.0.as_str()).collect();
+    let table = read_csv(path, &req, &opt)?;
+    check_time(path, &table.required[0], &table.lines, true)?;
+    let n = joints.len();
+    let mut req_cols = table.required.into_iter();
+    let time_s = req_cols.next().unwrap_or_default();
+    let command_rad: Vec<Vec<f64>> = req_cols.by_ref().take(n).collect();
+    let mut channels: Vec<ArmChannel> = req_cols
+        .zip(joints.iter().enumerate())
+        .map(|(values, (k, j))| ArmChannel {
+            name: ArmQuantity::Motor.column(j),
+            quantity: ArmQuantity::Motor,
+            joint: Some(k),
+            values,
+        })
+        .collect();
+    for ((name, quantity, joint), values) in optional.into_iter().zip(table.optional) {
+        if let Some(values) = values {
+            channels.push(ArmChannel {
+                name,
+                quantity,
+                joint,
+                values,
+            });
+        }
+    }
+    Ok(ArmRun {
+        name: file_stem(&file),
+        file,
+        title,
+        payload_kg,
+        time_s,
+        command_rad,
+        channels,
+    })
+}
+
+/// The header row of a CSV file.
+fn csv_headers(path: &Path) -> Result<Vec<String>, DatasetError> {
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .trim(csv::Trim::All)
+        .from_path(path)
+        .map_err(|e| csv_error(path, &e))?;
+    Ok(reader
+        .headers()
+        .map_err(|e| csv_error(path, &e))?
+        .iter()
+        .map(str::to_string)
+        .collect())
 }
 
 // ---------------------------------------------------------------------------------------

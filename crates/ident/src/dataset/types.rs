@@ -25,6 +25,8 @@ pub enum DatasetKind {
     Relaxation(RelaxationDataset),
     /// `kind = "cyclic"`.
     Cyclic(CyclicDataset),
+    /// `kind = "arm_moves"`.
+    ArmMoves(ArmMovesDataset),
 }
 
 impl DatasetKind {
@@ -34,6 +36,7 @@ impl DatasetKind {
             DatasetKind::SineSweep(_) => KINDS[0],
             DatasetKind::Relaxation(_) => KINDS[1],
             DatasetKind::Cyclic(_) => KINDS[2],
+            DatasetKind::ArmMoves(_) => KINDS[3],
         }
     }
 }
@@ -340,6 +343,129 @@ pub struct CyclicDataset {
     pub specimen: CyclicSpecimen,
     /// The runs.
     pub runs: Vec<CyclicRun>,
+}
+
+/// An arm dataset (`kind = "arm_moves"`): a long-reach arm moved by its servos, what
+/// its sensors recorded.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArmMovesDataset {
+    /// `[arm] scenario`: the arm scenario, as written in `dataset.toml` (relative to
+    /// the dataset folder).
+    pub scenario: String,
+    /// The scenario file (the dataset folder joined with [`Self::scenario`]).
+    pub scenario_path: std::path::PathBuf,
+    /// The joints the scenario drives (one rope pair each), in the order of its
+    /// transmissions: the `J` of every per-joint column.
+    pub joints: Vec<String>,
+    /// The rope of the scenario's first transmission (the model's rope: its `k1_scale`
+    /// and rope-law effects act on every pair's own law).
+    pub rope: String,
+    /// The runs (moves), in file order.
+    pub runs: Vec<ArmRun>,
+}
+
+/// What an arm run measured besides time and the commands: one column of the run file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum ArmQuantity {
+    /// `motor_J_rad`: motor pulley angle of pair `J` (rad).
+    Motor,
+    /// `joint_J_rad`: link-side joint angle (rad).
+    Joint,
+    /// `tension_J_1_n`: a rope of side 1 of pair `J`, next to the motor pulley (N).
+    Tension1,
+    /// `tension_J_2_n`: a rope of side 2 (N).
+    Tension2,
+    /// `tip_x_m`, `tip_y_m`, `tip_z_m` (axis 0, 1, 2): tip position (m).
+    Tip(u8),
+    /// `tip_acc_x_m_s2`, ...: tip acceleration, gravity not included (m/s^2).
+    TipAcc(u8),
+}
+
+impl ArmQuantity {
+    /// The column name of this quantity at joint `joint` (ignored for the tip).
+    pub fn column(self, joint: &str) -> String {
+        const AXES: [&str; 3] = ["x", "y", "z"];
+        match self {
+            Self::Motor => format!("motor_{joint}_rad"),
+            Self::Joint => format!("joint_{joint}_rad"),
+            Self::Tension1 => format!("tension_{joint}_1_n"),
+            Self::Tension2 => format!("tension_{joint}_2_n"),
+            Self::Tip(a) => format!("tip_{}_m", AXES[usize::from(a) % 3]),
+            Self::TipAcc(a) => format!("tip_acc_{}_m_s2", AXES[usize::from(a) % 3]),
+        }
+    }
+
+    /// True for the tip's quantities (no joint).
+    pub fn is_tip(self) -> bool {
+        matches!(self, Self::Tip(_) | Self::TipAcc(_))
+    }
+
+    /// Unit of the quantity.
+    pub fn unit(self) -> &'static str {
+        match self {
+            Self::Motor | Self::Joint => "rad",
+            Self::Tension1 | Self::Tension2 => "N",
+            Self::Tip(_) => "m",
+            Self::TipAcc(_) => "m/s^2",
+        }
+    }
+}
+
+/// One measured channel of an arm run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArmChannel {
+    /// Column name (`motor_j1_rad`, `tip_x_m`, ...).
+    pub name: String,
+    /// What it measures.
+    pub quantity: ArmQuantity,
+    /// Index into [`ArmMovesDataset::joints`] (`None` for the tip).
+    pub joint: Option<usize>,
+    /// One value per sample.
+    pub values: Vec<f64>,
+}
+
+/// One move of the arm.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArmRun {
+    /// File stem.
+    pub name: String,
+    /// File name relative to the dataset folder.
+    pub file: String,
+    /// `title`, if given.
+    pub title: Option<String>,
+    /// `payload_kg`: the payload of this run (overrides the scenario's), if given.
+    pub payload_kg: Option<f64>,
+    /// Time since the run started (s), fixed rate.
+    pub time_s: Vec<f64>,
+    /// `command_J_rad` of every driven joint (in [`ArmMovesDataset::joints`] order).
+    pub command_rad: Vec<Vec<f64>>,
+    /// The measured channels: every driven joint's motor angle first (joint order),
+    /// then the optional channels the file holds, per joint (joint angle, tensions),
+    /// then the tip.
+    pub channels: Vec<ArmChannel>,
+}
+
+impl ArmRun {
+    /// Sampling interval (s).
+    pub fn dt_s(&self) -> f64 {
+        mean_interval(&self.time_s)
+    }
+
+    /// The channel that shows where driven joint `k` is: its joint angle when the run
+    /// measured it, else its motor angle (index into [`Self::channels`]).
+    pub fn angle_channel(&self, k: usize) -> Option<usize> {
+        let find = |q: ArmQuantity| {
+            self.channels
+                .iter()
+                .position(|c| c.joint == Some(k) && c.quantity == q)
+        };
+        find(ArmQuantity::Joint).or_else(|| find(ArmQuantity::Motor))
+    }
+
+    /// The channel called `name`.
+    pub fn channel(&self, name: &str) -> Option<&ArmChannel> {
+        self.channels.iter().find(|c| c.name == name)
+    }
 }
 
 /// True if two `frequency_hz` cells belong to the same step (equal within 1e-9 relative;

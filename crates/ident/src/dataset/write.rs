@@ -1,5 +1,5 @@
 //! Writing a dataset ([`SweepDataset::write`], [`RelaxationDataset::write`],
-//! [`CyclicDataset::write`]): every file goes into a temporary folder next to the
+//! [`CyclicDataset::write`], [`ArmMovesDataset::write`]): every file goes into a temporary folder next to the
 //! target, is read back with [`Dataset::load`], and only then is the folder renamed
 //! into place.
 
@@ -10,8 +10,8 @@ use serde::Serialize;
 
 use super::error::csv_error;
 use super::{
-    CyclicDataset, Dataset, DatasetError, RelaxationDataset, SweepDataset, DATASET_TOML, FORMAT,
-    SWEEP_TENSION_COLUMNS,
+    ArmMovesDataset, CyclicDataset, Dataset, DatasetError, RelaxationDataset, SweepDataset,
+    DATASET_TOML, FORMAT, SWEEP_TENSION_COLUMNS,
 };
 
 #[derive(Serialize)]
@@ -77,6 +77,8 @@ struct OutFileRun<'a> {
 struct Writer<'a> {
     dir: &'a Path,
     files: Vec<(String, Vec<(&'a str, &'a [f64])>)>,
+    /// Text files written as they are (an arm dataset's copy of its scenario).
+    texts: Vec<(String, String)>,
 }
 
 impl<'a> Writer<'a> {
@@ -149,6 +151,10 @@ impl<'a> Writer<'a> {
             .map_err(io(&parent, "create temporary folder"))?;
         fs::write(tmp.path().join(DATASET_TOML), toml_text)
             .map_err(io(&tmp.path().join(DATASET_TOML), "write"))?;
+        for (name, text) in &self.texts {
+            let path = tmp.path().join(name);
+            fs::write(&path, text).map_err(io(&path, "write"))?;
+        }
         for (name, columns) in &self.files {
             let path = tmp.path().join(name);
             let mut w = csv::Writer::from_path(&path).map_err(|e| csv_error(&path, &e))?;
@@ -217,6 +223,7 @@ impl SweepDataset {
         let mut w = Writer {
             dir,
             files: Vec::new(),
+            texts: Vec::new(),
         };
         for run in &self.runs {
             let mut cols: Vec<(&str, &[f64])> = vec![
@@ -288,6 +295,7 @@ impl RelaxationDataset {
         let mut w = Writer {
             dir,
             files: Vec::new(),
+            texts: Vec::new(),
         };
         for run in &self.runs {
             w.add(
@@ -321,6 +329,7 @@ impl CyclicDataset {
         let mut w = Writer {
             dir,
             files: Vec::new(),
+            texts: Vec::new(),
         };
         for run in &self.runs {
             w.add(
@@ -348,4 +357,179 @@ impl CyclicDataset {
         };
         w.commit(&toml_text(dir, &out)?)
     }
+}
+
+#[derive(Serialize)]
+struct OutArmMoves<'a> {
+    format: &'a str,
+    kind: &'a str,
+    title: &'a str,
+    arm: OutArm<'a>,
+    run: Vec<OutArmRun<'a>>,
+}
+
+#[derive(Serialize)]
+struct OutArm<'a> {
+    scenario: &'a str,
+}
+
+#[derive(Serialize)]
+struct OutArmRun<'a> {
+    file: &'a str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    payload_kg: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    title: Option<&'a str>,
+}
+
+impl ArmMovesDataset {
+    /// Writes this dataset to folder `dir`, atomically (see [`SweepDataset::write`]).
+    ///
+    /// When [`Self::scenario`] is a plain file name (`arm.toml`), the scenario at
+    /// [`Self::scenario_path`] is copied into the dataset under that name, its URDF path
+    /// made relative to `dir` and its commands dropped (the runs hold the commands): the
+    /// dataset then carries the arm it was measured on. Any other `scenario` is written
+    /// as it is and must resolve from `dir`.
+    pub fn write(&self, dir: impl AsRef<Path>, title: &str) -> Result<(), DatasetError> {
+        let dir = dir.as_ref();
+        let names: Vec<Vec<String>> = self
+            .runs
+            .iter()
+            .map(|r| {
+                self.joints
+                    .iter()
+                    .map(|j| format!("command_{j}_rad"))
+                    .chain(r.channels.iter().map(|c| c.name.clone()))
+                    .collect()
+            })
+            .collect();
+        let mut w = Writer {
+            dir,
+            files: Vec::new(),
+            texts: Vec::new(),
+        };
+        for (run, names) in self.runs.iter().zip(&names) {
+            if run.command_rad.len() != self.joints.len() {
+                return Err(w.invalid(format!(
+                    "{}: {} command columns for {} driven joints",
+                    run.file,
+                    run.command_rad.len(),
+                    self.joints.len()
+                )));
+            }
+            let data = run
+                .command_rad
+                .iter()
+                .chain(run.channels.iter().map(|c| &c.values));
+            let mut cols: Vec<(&str, &[f64])> = vec![("time_s", &run.time_s)];
+            cols.extend(
+                names
+                    .iter()
+                    .map(String::as_str)
+                    .zip(data.map(Vec::as_slice)),
+            );
+            w.add(&run.file, cols)?;
+        }
+        let plain = Path::new(&self.scenario)
+            .file_name()
+            .is_some_and(|f| f == std::ffi::OsStr::new(&self.scenario));
+        if plain {
+            let text = scenario_copy(&self.scenario_path, dir).map_err(|what| w.invalid(what))?;
+            w.texts.push((self.scenario.clone(), text));
+        }
+        let out = OutArmMoves {
+            format: FORMAT,
+            kind: "arm_moves",
+            title,
+            arm: OutArm {
+                scenario: &self.scenario,
+            },
+            run: self
+                .runs
+                .iter()
+                .map(|r| OutArmRun {
+                    file: &r.file,
+                    payload_kg: r.payload_kg,
+                    title: r.title.as_deref(),
+                })
+                .collect(),
+        };
+        w.commit(&toml_text(dir, &out)?)
+    }
+}
+
+/// The arm scenario at `path` as a file of the dataset folder `dir`: its URDF path
+/// relative to `dir`, every `command` removed.
+fn scenario_copy(path: &Path, dir: &Path) -> Result<String, String> {
+    let text = fs::read_to_string(path)
+        .map_err(|e| format!("cannot read the arm scenario {}: {e}", path.display()))?;
+    let mut doc: toml::Table = text
+        .parse()
+        .map_err(|e| format!("the arm scenario {} is not TOML: {e}", path.display()))?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let abs = |p: &Path| -> Result<PathBuf, String> {
+        let p = if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            std::env::current_dir()
+                .map_err(|e| format!("no current folder: {e}"))?
+                .join(p)
+        };
+        Ok(p.canonicalize().unwrap_or(p))
+    };
+    if let Some(urdf) = doc
+        .get_mut("arm")
+        .and_then(|a| a.as_table_mut())
+        .and_then(|a| a.get_mut("urdf"))
+    {
+        let given = urdf.as_str().unwrap_or_default().to_string();
+        let urdf_abs = abs(&base.join(&given))?;
+        // The dataset folder may not exist yet: its parent does (or will, created first).
+        let parent = dir.parent().filter(|p| !p.as_os_str().is_empty());
+        let parent_abs = match parent {
+            Some(p) => {
+                fs::create_dir_all(p).map_err(|e| format!("{}: {e}", p.display()))?;
+                abs(p)?
+            }
+            None => abs(Path::new("."))?,
+        };
+        let dir_abs = parent_abs.join(dir.file_name().unwrap_or_default());
+        let rel = relative_path(&dir_abs, &urdf_abs);
+        *urdf = toml::Value::String(rel.to_string_lossy().replace('\\', "/"));
+    }
+    let drop_command = |t: &mut toml::Table| {
+        t.remove("command");
+    };
+    if let Some(ts) = doc.get_mut("transmission").and_then(|t| t.as_array_mut()) {
+        for t in ts.iter_mut().filter_map(|t| t.as_table_mut()) {
+            drop_command(t);
+        }
+    }
+    if let Some(d) = doc
+        .get_mut("transmission_defaults")
+        .and_then(|t| t.as_table_mut())
+    {
+        drop_command(d);
+    }
+    let body = toml::to_string(&doc).map_err(|e| format!("cannot encode the scenario: {e}"))?;
+    Ok(format!(
+        "# The arm these moves were measured on: a copy of {} (URDF path relative to this\n\
+         # folder; [sim] and the commands are not used, the runs hold the commands).\n\n{body}",
+        path.file_name().unwrap_or_default().to_string_lossy()
+    ))
+}
+
+/// `to` relative to the folder `from` (both absolute).
+fn relative_path(from: &Path, to: &Path) -> PathBuf {
+    let a: Vec<_> = from.components().collect();
+    let b: Vec<_> = to.components().collect();
+    let common = a.iter().zip(&b).take_while(|(x, y)| x == y).count();
+    let mut out = PathBuf::new();
+    for _ in common..a.len() {
+        out.push("..");
+    }
+    for c in &b[common..] {
+        out.push(c);
+    }
+    out
 }

@@ -2,6 +2,7 @@
 //! executable instead of one per file: CI's build time and disk). Each former
 //! test file is a module; filter with its name, e.g. `-- cyclic::`.
 
+mod arm;
 mod cyclic;
 mod dataset_errors;
 mod diagnose_loop;

@@ -9,8 +9,14 @@
 //! - [`SpecimenPlant`]: a rope specimen (relaxation at constant strain, cyclic
 //!   load-strain), channel `tension_n`.
 //!
-//! [`plant_for`] picks the plant of a dataset. The arm (`arm_moves`) gets its plant
-//! with the arm's measurement loop.
+//! - [`ArmPlant`] (`arm.rs`): a long-reach arm (`arm_moves`), built once from its
+//!   scenario per payload, driven by each run's recorded commands from the static
+//!   equilibrium at the first commanded pose; every channel the run measured (motor and
+//!   joint angles, rope tensions at the motor, the tip).
+//!
+//! [`plant_for`] picks the plant of a dataset.
+
+use std::borrow::Cow;
 
 use longreach_drive::effects::{Argument, DataKind};
 use longreach_drive::{rig_transfer, RigSpec as DriveRig};
@@ -21,11 +27,15 @@ use crate::error::IdentError;
 use crate::model::PlantParams;
 use crate::sim;
 
+mod arm;
+
+pub use arm::{stack, stacking, substeps_for, ArmPlant, ARM_MAX_STEP_S, ARM_STACKED};
+
 /// One simulated channel of a run, named as the dataset's column.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Channel {
-    /// Column name (`output_angle_rad`, `tension_in_1_n`, ...).
-    pub name: &'static str,
+    /// Column name (`output_angle_rad`, `tension_in_1_n`, `motor_j1_rad`, ...).
+    pub name: Cow<'static, str>,
     /// One value per sample of the run.
     pub values: Vec<f64>,
 }
@@ -106,6 +116,7 @@ pub fn plant_for(ds: &Dataset, substeps: usize) -> Box<dyn Plant + '_> {
         }),
         DatasetKind::Relaxation(rx) => Box::new(SpecimenPlant::Relaxation(rx)),
         DatasetKind::Cyclic(cy) => Box::new(SpecimenPlant::Cyclic(cy)),
+        DatasetKind::ArmMoves(am) => Box::new(ArmPlant::new(am)),
     }
 }
 
@@ -158,7 +169,7 @@ impl Plant for RigPlant<'_> {
         let r = &self.sweep.runs[run];
         let s = self.sweep_sim(params, run)?;
         let mut out = vec![Channel {
-            name: "output_angle_rad",
+            name: "output_angle_rad".into(),
             values: s.output_rad,
         }];
         for (name, measured, values) in [
@@ -168,7 +179,10 @@ impl Plant for RigPlant<'_> {
             ("tension_out_2_n", &r.tension_out_2_n, s.tension_2_n),
         ] {
             if measured.is_some() {
-                out.push(Channel { name, values });
+                out.push(Channel {
+                    name: name.into(),
+                    values,
+                });
             }
         }
         let mut channels = Channels(out);
@@ -243,7 +257,7 @@ pub fn apply_sensors(
         else {
             continue;
         };
-        for c in channels.0.iter_mut().filter(|c| sensor.acts_on(c.name)) {
+        for c in channels.0.iter_mut().filter(|c| sensor.acts_on(&c.name)) {
             sensor.apply(time_s, &mut c.values);
         }
     }
@@ -290,7 +304,7 @@ impl Plant for SpecimenPlant<'_> {
             source,
         })?;
         let mut channels = Channels(vec![Channel {
-            name: "tension_n",
+            name: "tension_n".into(),
             values,
         }]);
         let time_s = match self {

@@ -1,0 +1,370 @@
+//! The arm plant: a long-reach arm (`arm_moves` datasets, crates/arm) driven by each
+//! run's recorded commands.
+//!
+//! Built once: the dataset's scenario is compiled once per distinct payload (a run's
+//! `payload_kg` overrides the scenario's `[payload]` mass). Each simulation rebuilds
+//! the [`DrivenArm`] from those parts with the model's numbers:
+//!
+//! - base parameters (`k1_scale`, ...) and rope-law effects act on every pair's own
+//!   rope law (the pairs may hold different ropes; the model's rope is the first
+//!   pair's);
+//! - pair-site effects (`relay_friction`) act on every pair, joint-site effects
+//!   (`joint_friction`) at every driven joint, with the same values;
+//! - sensor-site effects act on the channels they name.
+//!
+//! A run starts at rest in the static equilibrium at its first commanded pose (the
+//! scenario's `initial_q_rad` for joints without a transmission). The commands are the
+//! run's `command_J_rad` columns, linearly interpolated between samples (as a `csv`
+//! command of a scenario: offsets from the first row, velocity reference the slope of
+//! the interpolation). The arm steps at the sample interval divided into
+//! [`substeps_for`] equal steps of at most [`ARM_MAX_STEP_S`].
+
+use std::borrow::Cow;
+
+use longreach_arm::scenario::{self, ArmScenario};
+use longreach_arm::{ArmSpec, Command, DrivenArm, DrivenState};
+use longreach_drive::effects::{Applied, DataKind, Site};
+use longreach_drive::transmission::PairSpec;
+use longreach_drive::InputSignal;
+
+use super::{apply_sensors, Channel, Channels, Plant};
+use crate::dataset::{ArmMovesDataset, ArmQuantity, ArmRun};
+use crate::error::IdentError;
+use crate::model::PlantParams;
+
+/// Name of the arm plant's compared channel (first of its channels; what `fit` and
+/// `diagnose` fit): every measured channel minus its measured mean, over its noise,
+/// concatenated in the run's channel order ([`stacking`]).
+pub const ARM_STACKED: &str = "arm_stacked";
+
+/// How each channel of run `r` enters the compared channel: its measured mean and its
+/// noise standard deviation (encoders `q / sqrt(12)` at 1e-4 rad; tensions and the tip
+/// from the second differences of the measurement).
+pub fn stacking(r: &ArmRun) -> Vec<(f64, f64)> {
+    r.channels
+        .iter()
+        .map(|c| {
+            let n = c.values.len().max(1) as f64;
+            let mean = c.values.iter().sum::<f64>() / n;
+            let sigma = match c.quantity {
+                ArmQuantity::Motor | ArmQuantity::Joint => {
+                    crate::dataset::ARM_ENCODER_RESOLUTION_RAD / 12f64.sqrt()
+                }
+                _ => crate::metrics::noise_sigma_second_difference(&c.values).max(1e-12),
+            };
+            (mean, sigma)
+        })
+        .collect()
+}
+
+/// The compared channel of a run: channel `k`'s values (`values(k)`) minus its mean
+/// over its noise (`weights[k]`, from [`stacking`]), concatenated.
+pub fn stack<'v>(weights: &[(f64, f64)], values: impl Fn(usize) -> &'v [f64]) -> Vec<f64> {
+    weights
+        .iter()
+        .enumerate()
+        .flat_map(|(k, &(mean, sigma))| values(k).iter().map(move |v| (v - mean) / sigma))
+        .collect()
+}
+
+/// Longest simulation step of the arm plant, s (the arm scenarios' 1 ms).
+pub const ARM_MAX_STEP_S: f64 = 1e-3;
+
+/// Steps per sample interval `dt_s`: the fewest that make each step at most
+/// [`ARM_MAX_STEP_S`].
+pub fn substeps_for(dt_s: f64) -> usize {
+    ((dt_s / ARM_MAX_STEP_S) - 1e-9).ceil().max(1.0) as usize
+}
+
+/// What the scenario compiles to, before the model's numbers.
+#[derive(Debug, Clone)]
+struct ArmParts {
+    spec: ArmSpec,
+    pairs: Vec<PairSpec>,
+    joint_effects: Vec<(usize, Applied)>,
+    initial_q_rad: Vec<f64>,
+}
+
+impl ArmParts {
+    fn of(sc: ArmScenario) -> Self {
+        Self {
+            spec: sc.arm.spec().clone(),
+            pairs: sc.arm.pairs().iter().map(|p| p.spec.clone()).collect(),
+            joint_effects: sc.joint_effects,
+            initial_q_rad: sc.arm.initial_q_rad().to_vec(),
+        }
+    }
+}
+
+/// The arm of an `arm_moves` dataset ([`crate::dataset::ArmMovesDataset`]).
+#[derive(Debug)]
+pub struct ArmPlant<'a> {
+    ds: &'a ArmMovesDataset,
+    /// The compiled scenario of each run (shared between runs of one payload), or why
+    /// it does not compile.
+    parts: Vec<Result<std::sync::Arc<ArmParts>, String>>,
+    /// Each run's [`stacking`].
+    weights: Vec<Vec<(f64, f64)>>,
+}
+
+/// The scenario text with the payload mass set to `mass_kg` (the rest of `[payload]`
+/// kept).
+fn with_payload(text: &str, mass_kg: f64) -> Result<String, String> {
+    let mut doc: toml::Table = text.parse().map_err(|e| format!("{e}"))?;
+    let payload = doc
+        .entry("payload")
+        .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+    let t = payload
+        .as_table_mut()
+        .ok_or("`payload` is not a table in the scenario")?;
+    t.insert("mass_kg".into(), toml::Value::Float(mass_kg));
+    toml::to_string(&doc).map_err(|e| e.to_string())
+}
+
+impl<'a> ArmPlant<'a> {
+    /// Compiles the dataset's scenario once per distinct payload.
+    pub fn new(ds: &'a ArmMovesDataset) -> Self {
+        let path = &ds.scenario_path;
+        let file = path.display().to_string();
+        let base = path.parent().unwrap_or(std::path::Path::new("."));
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{file}: {e}"));
+        let mut cache: Vec<(Option<u64>, Result<std::sync::Arc<ArmParts>, String>)> = Vec::new();
+        let mut parts = Vec::with_capacity(ds.runs.len());
+        for run in &ds.runs {
+            let key = run.payload_kg.map(f64::to_bits);
+            if let Some((_, p)) = cache.iter().find(|(k, _)| *k == key) {
+                parts.push(p.clone());
+                continue;
+            }
+            let built = text.clone().and_then(|text| {
+                let text = match run.payload_kg {
+                    Some(m) => with_payload(&text, m).map_err(|e| format!("{file}: {e}"))?,
+                    None => text,
+                };
+                scenario::parse(&text, &file, base)
+                    .map(|sc| std::sync::Arc::new(ArmParts::of(sc)))
+                    .map_err(|e| e.to_string())
+            });
+            cache.push((key, built.clone()));
+            parts.push(built);
+        }
+        let weights = ds.runs.iter().map(stacking).collect();
+        Self { ds, parts, weights }
+    }
+
+    /// The arm of run `run` with the numbers `params`, for steps of `dt_s`.
+    fn build(&self, params: &PlantParams, run: usize, dt_s: f64) -> Result<DrivenArm, IdentError> {
+        let r = &self.ds.runs[run];
+        let err = |message: String| IdentError::ArmBuild {
+            run: r.name.clone(),
+            message,
+        };
+        let parts = self.parts[run].as_ref().map_err(|m| err(m.clone()))?;
+        let mut pairs = parts.pairs.clone();
+        for pair in &mut pairs {
+            let mut p = PlantParams {
+                law: pair.law.clone(),
+                output_damping_n_m_s: None,
+                effects: Vec::new(),
+                base: Vec::new(),
+                rope_effects: Vec::new(),
+            };
+            for &(b, v) in &params.base {
+                b.apply(v, &mut p).map_err(|e| err(e.to_string()))?;
+            }
+            pair.law = p.law;
+            for a in params.rope_effects.iter().chain(
+                params
+                    .effects
+                    .iter()
+                    .filter(|a| a.effect.site() != Site::Joint && a.effect.site() != Site::Sensor),
+            ) {
+                a.apply_to_pair(pair)
+                    .map_err(|e| err(format!("effect {}: {e}", a.effect.name())))?;
+                pair.effects.push(a.effect.name().to_string());
+            }
+        }
+        let mut joint_effects = parts.joint_effects.clone();
+        for a in params
+            .effects
+            .iter()
+            .filter(|a| a.effect.site() == Site::Joint)
+        {
+            for pair in &parts.pairs {
+                joint_effects.retain(|(j, b)| {
+                    *j != pair.joint || !longreach_drive::effects::same(a.effect, b.effect)
+                });
+                joint_effects.push((pair.joint, a.clone()));
+            }
+        }
+        let (initial, commands) = run_commands(&parts.spec, &parts.pairs, &parts.initial_q_rad, r)
+            .map_err(|e| err(e.to_string()))?;
+        DrivenArm::with_joint_effects(
+            parts.spec.clone(),
+            pairs,
+            joint_effects,
+            commands,
+            initial,
+            dt_s,
+        )
+        .map_err(|e| err(e.to_string()))
+    }
+}
+
+/// The initial pose and the commands of run `r`: every driven joint starts at its first
+/// commanded angle and follows the recorded commands (linear interpolation, offsets from
+/// the first row); the other joints hold the scenario's initial angle.
+fn run_commands(
+    spec: &ArmSpec,
+    pairs: &[PairSpec],
+    scenario_q_rad: &[f64],
+    r: &ArmRun,
+) -> Result<(Vec<f64>, Vec<Command>), longreach_drive::DriveError> {
+    let mut initial = scenario_q_rad.to_vec();
+    let mut commands = vec![Command::Hold; spec.ndofs()];
+    let t0 = r.time_s.first().copied().unwrap_or(0.0);
+    let time: Vec<f64> = r.time_s.iter().map(|t| t - t0).collect();
+    for (pair, cmd) in pairs.iter().zip(&r.command_rad) {
+        let c0 = cmd.first().copied().unwrap_or(0.0);
+        initial[pair.joint] = c0;
+        let offsets = cmd.iter().map(|c| c - c0).collect();
+        commands[pair.joint] = Command::Signal(InputSignal::series(time.clone(), offsets)?);
+    }
+    Ok((initial, commands))
+}
+
+/// One sample of every channel of `r` from the state.
+fn record(
+    arm: &DrivenArm,
+    st: &DrivenState,
+    r: &ArmRun,
+    tip: &mut [Vec<f64>; 3],
+    out: &mut [Vec<f64>],
+) {
+    let need_tip = r.channels.iter().any(|c| c.quantity.is_tip());
+    let tip_now = if need_tip {
+        arm.tip_m(&st.q_rad).ok()
+    } else {
+        None
+    };
+    if let Some(t) = tip_now {
+        for a in 0..3 {
+            tip[a].push(t[a]);
+        }
+    }
+    for (c, o) in r.channels.iter().zip(out.iter_mut()) {
+        let pair = c.joint.unwrap_or(0);
+        let joint = arm.pairs().get(pair).map_or(0, |p| p.spec.joint);
+        let v = match c.quantity {
+            ArmQuantity::Motor => st.motor_rad[pair],
+            ArmQuantity::Joint => st.q_rad[joint],
+            ArmQuantity::Tension1 | ArmQuantity::Tension2 => {
+                let spans = arm.span_tensions_n(st, pair);
+                let side = usize::from(c.quantity == ArmQuantity::Tension2);
+                spans.first().map_or(f64::NAN, |s| s[side])
+            }
+            ArmQuantity::Tip(a) => tip_now.map_or(f64::NAN, |t| t[usize::from(a)]),
+            // Filled in from the tip positions once the run is done.
+            ArmQuantity::TipAcc(_) => 0.0,
+        };
+        o.push(v);
+    }
+}
+
+/// Second differences of `x` sampled every `dt_s` (the ends copy their neighbours).
+fn second_difference(x: &[f64], dt_s: f64) -> Vec<f64> {
+    let n = x.len();
+    if n < 3 {
+        return vec![0.0; n];
+    }
+    let mut out = vec![0.0; n];
+    for i in 1..n - 1 {
+        out[i] = (x[i + 1] - 2.0 * x[i] + x[i - 1]) / (dt_s * dt_s);
+    }
+    out[0] = out[1];
+    out[n - 1] = out[n - 2];
+    out
+}
+
+/// Simulates the arm `arm` on run `r`: the channels of `r` at its sample times (tip
+/// accelerations by second differences of the sampled tip positions).
+pub(crate) fn simulate_run(
+    arm: &DrivenArm,
+    r: &ArmRun,
+    substeps: usize,
+) -> Result<Vec<Vec<f64>>, IdentError> {
+    let n = r.time_s.len();
+    let mut out: Vec<Vec<f64>> = r.channels.iter().map(|_| Vec::with_capacity(n)).collect();
+    let mut tip: [Vec<f64>; 3] = Default::default();
+    let mut st = arm.initial_state();
+    record(arm, &st, r, &mut tip, &mut out);
+    for _ in 1..n {
+        for _ in 0..substeps {
+            arm.step(&mut st).map_err(|e| IdentError::ArmSimulation {
+                run: r.name.clone(),
+                time_s: st.time_s,
+                message: e.to_string(),
+            })?;
+        }
+        record(arm, &st, r, &mut tip, &mut out);
+    }
+    let dt = r.dt_s();
+    for (c, o) in r.channels.iter().zip(out.iter_mut()) {
+        if let ArmQuantity::TipAcc(a) = c.quantity {
+            *o = second_difference(&tip[usize::from(a)], dt);
+        }
+    }
+    Ok(out)
+}
+
+impl ArmPlant<'_> {
+    /// The arm of run `run` built with `params` at the run's simulation step, and its
+    /// substeps per sample.
+    pub fn arm_for(
+        &self,
+        params: &PlantParams,
+        run: usize,
+    ) -> Result<(DrivenArm, usize), IdentError> {
+        let dt = self.ds.runs[run].dt_s();
+        let k = substeps_for(dt);
+        Ok((self.build(params, run, dt / k as f64)?, k))
+    }
+}
+
+impl Plant for ArmPlant<'_> {
+    fn kind(&self) -> DataKind {
+        DataKind::ArmMoves
+    }
+
+    fn runs(&self) -> usize {
+        self.ds.runs.len()
+    }
+
+    /// The compared channel ([`ARM_STACKED`]), then every measured channel of the run
+    /// in the run's order (the motor angles first).
+    fn simulate(&self, params: &PlantParams, run: usize) -> Result<Channels, IdentError> {
+        let r = &self.ds.runs[run];
+        let (arm, k) = self.arm_for(params, run)?;
+        let values = simulate_run(&arm, r, k)?;
+        let mut channels = Channels(
+            r.channels
+                .iter()
+                .zip(values)
+                .map(|(c, values)| Channel {
+                    name: Cow::Owned(c.name.clone()),
+                    values,
+                })
+                .collect(),
+        );
+        apply_sensors(params, &r.time_s, &mut channels)?;
+        let stacked = stack(&self.weights[run], |k| channels.0[k].values.as_slice());
+        channels.0.insert(
+            0,
+            Channel {
+                name: Cow::Borrowed(ARM_STACKED),
+                values: stacked,
+            },
+        );
+        Ok(channels)
+    }
+}

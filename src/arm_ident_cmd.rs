@@ -1,0 +1,292 @@
+//! `longreach compare` and `longreach synth` on arm datasets (`arm_moves`): the tables,
+//! the JSON and the report of [`longreach_ident::analysis::compare_arm`], and the
+//! `--arm` form of `synth`.
+
+use std::path::Path;
+use std::process::ExitCode;
+
+use anyhow::{anyhow, bail, Context, Result};
+use comfy_table::Table;
+
+use longreach_ident::analysis::{self, ArmComparison, Figures};
+use longreach_ident::model::Model;
+use longreach_ident::plant::Channels;
+use longreach_ident::synth::{self, ArmMove, ArmMovesOptions};
+use longreach_ident::{Dataset, DatasetKind};
+use longreach_plot::{write_png, Figure, Panel, Series, Style};
+
+use crate::output::{write_atomic, write_atomic_with};
+
+fn opt(x: Option<f64>, digits: usize) -> String {
+    x.map_or("-".into(), |v| format!("{v:.digits$}"))
+}
+
+/// Prints the comparison of an arm dataset: the channels, where it fails, the figures.
+pub fn print_arm_comparison(c: &ArmComparison) {
+    let mut t = Table::new();
+    t.set_header(vec![
+        "run", "channel", "NRMSE", "floor", "x floor", "move", "settling",
+    ]);
+    for e in &c.channels {
+        t.add_row(vec![
+            e.run.clone(),
+            e.channel.clone(),
+            format!("{:.4}", e.nrmse),
+            format!("{:.4}", e.noise_floor_nrmse),
+            format!("{:.2}", e.ratio),
+            opt(e.ratio_move, 2),
+            opt(e.ratio_settling, 2),
+        ]);
+    }
+    println!("{t}");
+    println!(
+        "worst channel at {:.2}x its noise floor ({} channels; within 1.5x: {})",
+        c.worst_ratio,
+        c.channels.len(),
+        c.channels.iter().filter(|e| e.ratio <= 1.5).count()
+    );
+    let mut w = Table::new();
+    w.set_header(vec![
+        "where it fails: run",
+        "channel",
+        "phase",
+        "window [s]",
+        "x floor",
+        "share",
+    ]);
+    for p in c.worst_windows.iter().take(5) {
+        w.add_row(vec![
+            p.run.clone(),
+            p.channel.clone(),
+            p.phase.to_string(),
+            format!("{:.2}-{:.2}", p.start_s, p.end_s),
+            format!("{:.1}", p.ratio),
+            format!("{:.1}%", 100.0 * p.share),
+        ]);
+    }
+    println!("{w}");
+    println!("{}", figures_table(c));
+}
+
+fn figure_cells(f: &Figures) -> [String; 6] {
+    [
+        opt(f.settling_time_s, 2),
+        opt(f.overshoot_pct, 1),
+        opt(f.vibration_hz, 2),
+        opt(f.damping_ratio, 3),
+        opt(f.peak_tension_n, 0),
+        opt(f.min_tension_n, 0),
+    ]
+}
+
+fn figures_table(c: &ArmComparison) -> Table {
+    let mut t = Table::new();
+    t.set_header(vec![
+        "move: run",
+        "joint",
+        "",
+        "settling 2% [s]",
+        "overshoot [%]",
+        "vibration [Hz]",
+        "damping ratio",
+        "peak tension [N]",
+        "min tension [N]",
+    ]);
+    for m in &c.figures {
+        for (label, f) in [("measured", &m.measured), ("model", &m.model)] {
+            let mut row = vec![m.run.clone(), m.joint.clone(), label.to_string()];
+            row.extend(figure_cells(f));
+            t.add_row(row);
+        }
+    }
+    t
+}
+
+/// Runs `compare` on an arm dataset.
+pub fn run_compare_arm(
+    ds: &Dataset,
+    model: &Model,
+    json: Option<&Path>,
+    report: Option<&Path>,
+    rerun: bool,
+) -> Result<ExitCode> {
+    if rerun {
+        eprintln!("note: --rerun does not draw arm datasets yet; compare runs without it");
+    }
+    let sims = analysis::simulate_arm(ds, model).map_err(|e| anyhow!("{e}"))?;
+    let c = analysis::compare_arm(ds, &sims).map_err(|e| anyhow!("{e}"))?;
+    print_arm_comparison(&c);
+    if let Some(p) = json {
+        write_atomic(p, serde_json::to_string_pretty(&c)?.as_bytes())?;
+    }
+    if let Some(dir) = report {
+        write_arm_report(dir, ds, &c, &sims)?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `report.md` (the tables) and one PNG per run: measured against model, one panel per
+/// driven joint (its joint angle when measured, else its motor angle).
+fn write_arm_report(dir: &Path, ds: &Dataset, c: &ArmComparison, sims: &[Channels]) -> Result<()> {
+    let DatasetKind::ArmMoves(am) = &ds.kind else {
+        bail!("not an arm dataset");
+    };
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let mut md = format!(
+        "# {} — model vs measurement (arm)\n\nWorst channel at **{:.2}x** its noise floor.\n\n",
+        c.dataset, c.worst_ratio
+    );
+    md.push_str("| run | channel | NRMSE | floor | x floor | move | settling |\n|---|---|---|---|---|---|---|\n");
+    for e in &c.channels {
+        md.push_str(&format!(
+            "| {} | {} | {:.4} | {:.4} | {:.2} | {} | {} |\n",
+            e.run,
+            e.channel,
+            e.nrmse,
+            e.noise_floor_nrmse,
+            e.ratio,
+            opt(e.ratio_move, 2),
+            opt(e.ratio_settling, 2)
+        ));
+    }
+    md.push_str("\n## Where it fails\n\n| run | channel | phase | window [s] | x floor | share |\n|---|---|---|---|---|---|\n");
+    for p in c.worst_windows.iter().take(5) {
+        md.push_str(&format!(
+            "| {} | {} | {} | {:.2}-{:.2} | {:.1} | {:.1}% |\n",
+            p.run,
+            p.channel,
+            p.phase,
+            p.start_s,
+            p.end_s,
+            p.ratio,
+            100.0 * p.share
+        ));
+    }
+    md.push_str("\n## Vibration figures\n\n| run | joint | | settling 2% [s] | overshoot [%] | vibration [Hz] | damping ratio | peak tension [N] | min tension [N] |\n|---|---|---|---|---|---|---|---|---|\n");
+    for m in &c.figures {
+        for (label, f) in [("measured", &m.measured), ("model", &m.model)] {
+            md.push_str(&format!(
+                "| {} | {} | {label} | {} |\n",
+                m.run,
+                m.joint,
+                figure_cells(f).join(" | ")
+            ));
+        }
+    }
+    md.push_str("\n## Pictures\n\n");
+    for (run, sim) in am.runs.iter().zip(sims) {
+        let mut panels = Vec::new();
+        for (k, joint) in am.joints.iter().enumerate() {
+            let Some(ch) = run.angle_channel(k).map(|i| &run.channels[i]) else {
+                continue;
+            };
+            let Some(model) = sim.get(&ch.name) else {
+                continue;
+            };
+            panels.push(Panel {
+                y_label: format!("{joint} [rad]"),
+                series: vec![
+                    Series {
+                        label: format!("{} measured", ch.name),
+                        x: run.time_s.clone(),
+                        y: ch.values.clone(),
+                        style: Style::Line,
+                        color: 0,
+                    },
+                    Series {
+                        label: "model".into(),
+                        x: run.time_s.clone(),
+                        y: model.to_vec(),
+                        style: Style::DashedLine,
+                        color: 1,
+                    },
+                ],
+                y_range: None,
+                log_y: false,
+            });
+        }
+        let fig = Figure {
+            title: format!("{} {}: measured vs model", c.dataset, run.name),
+            x_label: "time [s]".into(),
+            log_x: false,
+            height_px: longreach_plot::min_height_px(panels.len()).max(600),
+            panels,
+            width_px: 1000,
+        };
+        let name = format!("arm_{}.png", run.name);
+        write_atomic_with(&dir.join(&name), |p| Ok(write_png(&fig, p)?))?;
+        md.push_str(&format!("![{name}]({name})\n"));
+    }
+    write_atomic(&dir.join("report.md"), md.as_bytes())?;
+    Ok(())
+}
+
+/// `--move JOINT:RAD[:PAYLOAD_KG]`.
+pub fn parse_move(s: &str, start_s: f64) -> Result<ArmMove> {
+    let parts: Vec<&str> = s.split(':').collect();
+    let num = |t: &str, what: &str| -> Result<f64> {
+        t.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| anyhow!("--move {s}: {what} `{t}` is not a number; write JOINT:RAD[:PAYLOAD_KG], e.g. j1:0.1 or j3:-0.15:8"))
+    };
+    match parts.as_slice() {
+        [j, m] | [j, m, _] if !j.trim().is_empty() => Ok(ArmMove {
+            joint: j.trim().to_string(),
+            move_rad: num(m, "the move")?,
+            start_s,
+            payload_kg: match parts.get(2) {
+                Some(p) => Some(num(p, "the payload")?),
+                None => None,
+            },
+        }),
+        _ => bail!("--move {s}: write JOINT:RAD[:PAYLOAD_KG], e.g. j1:0.1 or j3:-0.15:8"),
+    }
+}
+
+/// What `synth --arm` needs besides the model's effects.
+pub struct ArmSynth<'a> {
+    /// The scenario.
+    pub scenario: &'a Path,
+    /// The `--move`s.
+    pub moves: &'a [String],
+    /// Start of every move, s.
+    pub start_s: f64,
+    /// Run length, s.
+    pub duration_s: f64,
+    /// Sample rate, Hz.
+    pub sample_hz: f64,
+    /// Seed.
+    pub seed: u64,
+}
+
+/// The plan of a synthetic arm dataset (the dataset a model is read against).
+pub fn arm_plan(a: &ArmSynth<'_>) -> Result<(Dataset, ArmMovesOptions)> {
+    let mut opt = ArmMovesOptions::new(a.scenario, a.seed);
+    opt.duration_s = a.duration_s;
+    opt.sample_hz = a.sample_hz;
+    opt.moves = a
+        .moves
+        .iter()
+        .map(|m| parse_move(m, a.start_s))
+        .collect::<Result<_>>()?;
+    if opt.moves.is_empty() {
+        bail!("synth --arm needs at least one --move JOINT:RAD (one run per move), e.g. --move j1:0.1 --move j5:0.2");
+    }
+    let plan = synth::arm_plan(&opt).map_err(|e| anyhow!("{e}"))?;
+    Ok((plan, opt))
+}
+
+/// Simulates the model on the plan and writes the dataset.
+pub fn write_arm_synth(
+    model: &Model,
+    plan: &Dataset,
+    opt: &ArmMovesOptions,
+    out: &Path,
+    title: &str,
+) -> Result<()> {
+    let d = synth::arm_moves(model, plan, opt).map_err(|e| anyhow!("{e}"))?;
+    d.write(out, title)?;
+    Ok(())
+}
