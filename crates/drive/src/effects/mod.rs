@@ -82,6 +82,7 @@
 mod extra_retardation;
 mod internal_damping;
 mod joint_friction;
+mod link_flexibility;
 mod nonlinear_creep;
 mod nonlinear_stiffness;
 mod plastic_ratchet;
@@ -92,6 +93,7 @@ pub use crate::transmission::{JointForce, JointTorque};
 pub use extra_retardation::ExtraRetardation;
 pub use internal_damping::InternalDamping;
 pub use joint_friction::{BearingFriction, JointFriction};
+pub use link_flexibility::LinkFlexibility;
 pub use nonlinear_creep::NonlinearCreepEffect;
 pub use nonlinear_stiffness::NonlinearStiffness;
 pub use plastic_ratchet::PlasticRatchet;
@@ -104,6 +106,16 @@ use longreach_rope::{RopeLaw, Table};
 
 use crate::transmission::PairSpec;
 use crate::DriveError;
+
+/// The bending of a flexible link of an arm, as an effect at the link site sees it
+/// ([`Effect::on_link`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LinkBending {
+    /// Bending stiffness `E I`, N*m^2.
+    pub ei_n_m2: f64,
+    /// Structural damping ratio of its bending modes.
+    pub damping_ratio: f64,
+}
 
 /// The kind of measurement an effect is looked for in (the `kind` of a dataset).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -127,7 +139,7 @@ pub enum Site {
     RelayPulley,
     /// A joint: the rig's output shaft, an arm's joint ([`Effect::joint_force`]).
     Joint,
-    /// A link of an arm (its compliance; no hook yet).
+    /// A link of an arm: its bending ([`Effect::on_link`]).
     Link,
     /// The motor of a rope pair ([`Effect::on_pair`]).
     Motor,
@@ -230,6 +242,10 @@ pub trait Effect: Sync + std::fmt::Debug {
     fn joint_force(&self, _args: Args<'_>) -> Result<Option<Arc<dyn JointForce>>, DriveError> {
         Ok(None)
     }
+    /// Link site: changes the bending of a flexible link; `true` when it did.
+    fn on_link(&self, _args: Args<'_>, _link: &mut LinkBending) -> Result<bool, DriveError> {
+        Ok(false)
+    }
     /// Sensor site: how the effect changes what a sensor reports (`None`: it does not).
     fn sensor(&self, _args: Args<'_>) -> Result<Option<Arc<dyn SensorModel>>, DriveError> {
         Ok(None)
@@ -329,6 +345,7 @@ pub static REGISTRY: &[&dyn Effect] = &[
     &plastic_ratchet::PlasticRatchet,
     &relay_friction::RelayFrictionEffect,
     &joint_friction::JointFriction,
+    &link_flexibility::LinkFlexibility,
     &sensor_delay::SensorDelay,
 ];
 
@@ -449,6 +466,12 @@ impl Applied {
     /// The passive torque the effect adds at a joint, if any.
     pub fn joint_force(&self) -> Result<Option<Arc<dyn JointForce>>, DriveError> {
         self.effect.joint_force(self.args())
+    }
+
+    /// Applies the link hook to a flexible link's bending; `true` when the effect acts
+    /// there.
+    pub fn apply_to_link(&self, link: &mut LinkBending) -> Result<bool, DriveError> {
+        self.effect.on_link(self.args(), link)
     }
 
     /// What the effect does to a sensor, if anything.
