@@ -196,9 +196,15 @@ pub fn modes(arm: &DrivenArm) -> Result<Modes, ArmError> {
         .filter(|&i| (0..dim).any(|j| a[(i, j)] != 0.0 || a[(j, i)] != 0.0))
         .collect();
     let m = live.len();
-    let ar = DMatrix::from_fn(m, m, |i, j| a[(live[i], live[j])]);
+    // Balanced by the perturbation scales (the same eigenvalues; entries of order one).
+    let ar = DMatrix::from_fn(m, m, |i, j| a[(live[i], live[j])] * sc[live[j]] / sc[live[i]]);
     let h = arm.dt_s();
-    let eig = ar.clone().complex_eigenvalues();
+    let eig = nalgebra::Schur::try_new(ar.clone(), 1e-11, 1000 * m.max(1))
+        .ok_or_else(|| ArmError::BadTransmission {
+            field: "modes".into(),
+            reason: "the eigenvalues of the linearised step did not converge".into(),
+        })?
+        .complex_eigenvalues();
     let one = Complex::new(1.0, 0.0);
     let mut out = Vec::new();
     let mut real_poles = 0;
@@ -208,7 +214,7 @@ pub fn modes(arm: &DrivenArm) -> Result<Modes, ArmError> {
             continue; // the accelerations' image
         }
         let s = (lam - one) / (lam + one) * (2.0 / h);
-        if s.im.abs() <= 1e-9 * s.norm().max(1.0) {
+        if s.im.abs() <= 1e-6 * s.norm().max(1.0) || -s.re >= 0.999 * s.norm() {
             real_poles += 1;
             continue;
         }
@@ -231,7 +237,7 @@ pub fn modes(arm: &DrivenArm) -> Result<Modes, ArmError> {
         }
         let mut full = vec![Complex::new(0.0, 0.0); dim];
         for (i, &k) in live.iter().enumerate() {
-            full[k] = v[i];
+            full[k] = v[i] * sc[k];
         }
         out.push(shape(&arm, &st0, &full, s, &l));
     }

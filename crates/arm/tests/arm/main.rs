@@ -6,6 +6,7 @@
 mod common;
 mod driven;
 mod dynamics;
+mod flex;
 mod joint_friction;
 mod multibody;
 mod payload;
