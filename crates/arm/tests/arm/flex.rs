@@ -388,7 +388,9 @@ fn modes_of_flexible_longreach5_are_the_peaks_of_its_impulse_response() {
             .sum()
     };
     let mut checked = 0;
-    for md in m.modes.iter().filter(|md| md.damping_ratio < 0.1).take(4) {
+    // Lightly damped modes make peaks (a heavily damped one, the rope-and-servo modes
+    // at zeta 0.1-0.3, is a broad hump the neighbours shift).
+    for md in m.modes.iter().filter(|md| md.damping_ratio < 0.05).take(4) {
         let f0 = md.damped_hz;
         let grid: Vec<f64> = (0..=80).map(|i| f0 * (0.96 + 0.001 * i as f64)).collect();
         let p: Vec<f64> = grid.iter().map(|&f| power(f)).collect();
