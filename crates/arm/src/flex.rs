@@ -140,7 +140,11 @@ impl Body {
         let i = self.i - self.m * skew_sq(p) - Matrix3::identity() * (2.0 * hf.dot(p))
             + hf * p.transpose()
             + p * hf.transpose();
-        Body { m: self.m, h: hf, i }
+        Body {
+            m: self.m,
+            h: hf,
+            i,
+        }
     }
 }
 
@@ -165,6 +169,8 @@ pub struct FlexLink {
     xs: Vec<f64>,
     ms: Vec<f64>,
     phi: Vec<[f64; MAX_MODES]>,
+    /// Modal mass of the stations, `sum_s m_s phi_a phi_b`, kg.
+    modal_mass: [[f64; MAX_MODES]; MAX_MODES],
     /// `phi_m(L)`, `phi_m'(L)` (1/m).
     phi_l: [f64; MAX_MODES],
     dphi_l: [f64; MAX_MODES],
@@ -358,7 +364,10 @@ impl FlexDynamics {
                 return Err(err("flexible twice: give each link once".into()));
             }
             if !(f.ei_n_m2.is_finite() && f.ei_n_m2 > 0.0) {
-                return Err(err(format!("EI = {}: give a positive bending stiffness", f.ei_n_m2)));
+                return Err(err(format!(
+                    "EI = {}: give a positive bending stiffness",
+                    f.ei_n_m2
+                )));
             }
             if !(f.damping_ratio.is_finite() && f.damping_ratio >= 0.0) {
                 return Err(err(format!(
@@ -375,7 +384,9 @@ impl FlexDynamics {
             let end = beam_end(spec, f.link).map_err(err)?;
             let length = end.norm();
             if length < 1e-6 {
-                return Err(err("its child joint is at its origin: nothing to bend".into()));
+                return Err(err(
+                    "its child joint is at its origin: nothing to bend".into()
+                ));
             }
             let ea = end / length;
             let axis = spec.joints[f.link - 1].axis.into_inner();
@@ -384,7 +395,11 @@ impl FlexDynamics {
                 across.normalize()
             } else {
                 // The joint turns about the link's own axis: any transverse pair.
-                let t = if ea.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+                let t = if ea.x.abs() < 0.9 {
+                    Vector3::x()
+                } else {
+                    Vector3::y()
+                };
                 (t - ea * t.dot(&ea)).normalize()
             };
             let e1 = e2.cross(&ea);
@@ -441,6 +456,14 @@ impl FlexDynamics {
                 stiffness[m] = f.ei_n_m2 * BETA_L[m].powi(4) / length.powi(3);
                 damping[m] = 2.0 * f.damping_ratio * (stiffness[m] * mu * length).sqrt();
             }
+            let mut modal_mass = [[0.0; MAX_MODES]; MAX_MODES];
+            for (s_i, ph) in phi.iter().enumerate() {
+                for a in 0..f.modes {
+                    for b in 0..f.modes {
+                        modal_mass[a][b] += ms[s_i] * ph[a] * ph[b];
+                    }
+                }
+            }
             links[f.link].flex = Some(out.len());
             out.push(FlexLink {
                 link: f.link,
@@ -453,6 +476,7 @@ impl FlexDynamics {
                 xs,
                 ms,
                 phi,
+                modal_mass,
                 phi_l,
                 dphi_l,
                 stiffness,
@@ -567,7 +591,12 @@ impl FlexDynamics {
                     let f = &self.flex[fi];
                     let eta = &q[f.offset..f.offset + 2 * f.nm];
                     let (s1, s2) = f.end_slopes(eta);
-                    let tip = f.ea * f.length_m + f.deflection(eta, f.length_m);
+                    let (mut w1, mut w2) = (0.0, 0.0);
+                    for m in 0..f.nm {
+                        w1 += f.phi_l[m] * eta[m];
+                        w2 += f.phi_l[m] * eta[f.nm + m];
+                    }
+                    let tip = f.ea * f.length_m + f.e1 * w1 + f.e2 * w2;
                     k.end_origin[i] = k.origin[i] + rot * tip;
                     k.end_rot[i] = rot * f.end_rotation(s1, s2);
                     k.d1[fi] = rot * f.e1;
@@ -799,9 +828,10 @@ impl FlexDynamics {
                 }
             }
         }
-        let mom = |cm: f64, ch: &Vector3<f64>, ci: &Matrix3<f64>, w: &Vector3<f64>, v0: &Vector3<f64>| {
-            (w.cross(ch) + v0 * cm, ci * w + ch.cross(v0))
-        };
+        let mom =
+            |cm: f64, ch: &Vector3<f64>, ci: &Matrix3<f64>, w: &Vector3<f64>, v0: &Vector3<f64>| {
+                (w.cross(ch) + v0 * cm, ci * w + ch.cross(v0))
+            };
         // Unit motions and momenta of every coordinate.
         for i in 1..nl {
             let j = i - 1;
@@ -845,18 +875,19 @@ impl FlexDynamics {
             m[a * nq + b] = v;
             m[b * nq + a] = v;
         };
-        let dot = |k: &FlexKin, a: usize, b: usize| k.mw[a].dot(&k.mom_a[b]) + k.mv[a].dot(&k.mom_l[b]);
+        let dot =
+            |k: &FlexKin, a: usize, b: usize| k.mw[a].dot(&k.mom_a[b]) + k.mv[a].dot(&k.mom_l[b]);
         for i in 1..nl {
             let j = i - 1;
             // Coordinates of link i: the joint, then its modes.
             let flex = self.links[i].flex.map(|fi| &self.flex[fi]);
-            let mut own = vec![j];
-            if let Some(f) = flex {
-                own.extend(f.offset..f.offset + 2 * f.nm);
-            }
-            for (bi, &b) in own.iter().enumerate() {
+            let (first, count) = flex.map_or((j, 1), |f| (f.offset, 2 * f.nm + 1));
+            let coord = |t: usize| if t == 0 { j } else { first + t - 1 };
+            for bt in 0..count {
+                let b = coord(bt);
                 // Within the link.
-                for &a in &own[..=bi] {
+                for at in 0..=bt {
+                    let a = coord(at);
                     let v = if a == j {
                         dot(k, a, b) + if b == j { self.links[i].armature } else { 0.0 }
                     } else {
@@ -864,14 +895,9 @@ impl FlexDynamics {
                         let f = flex.expect("modes of a flexible link");
                         let (da, ma) = ((a - f.offset) / f.nm, (a - f.offset) % f.nm);
                         let (db, mb) = ((b - f.offset) / f.nm, (b - f.offset) % f.nm);
-                        let mut v = 0.0;
-                        if da == db {
-                            for s in 0..f.xs.len() {
-                                v += f.ms[s] * f.phi[s][ma] * f.phi[s][mb];
-                            }
-                        }
+                        let st = if da == db { f.modal_mass[ma][mb] } else { 0.0 };
                         let (ml, mma) = mom(k.tm[i], &k.th[i], &k.ti[i], &k.mw[b], &k.mv[b]);
-                        v + k.mw[a].dot(&mma) + k.mv[a].dot(&ml)
+                        st + k.mw[a].dot(&mma) + k.mv[a].dot(&ml)
                     };
                     set(a, b, v);
                 }
