@@ -397,20 +397,13 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
     // Parse every transmission (defaults merged in).
     let mut sections = Vec::new();
     for (i, t) in doc.transmission.iter().enumerate() {
-        let mut t = t.clone();
-        if let Some(d) = &doc.transmission_defaults {
-            merge(&mut t, d);
-        }
-        let sec: TransmissionSection =
-            toml::Value::Table(t)
-                .try_into()
-                .map_err(|e: toml::de::Error| {
-                    ferr(
-                        &format!("transmission.{i}"),
-                        format!("transmission {i}: {}", e.message().trim()),
-                        "see docs/arm.md for the fields of a [[transmission]] table",
-                    )
-                })?;
+        let sec: TransmissionSection = table_entry(
+            t,
+            doc.transmission_defaults.as_ref(),
+            "transmission",
+            i,
+            &ferr,
+        )?;
         sections.push(sec);
     }
     let joint_of = |name: &str, field: &str| {
@@ -630,14 +623,42 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
     }
     let arm = DrivenArm::with_joint_effects(spec, pairs, joint_effects, commands, initial, s.dt_s)
         .map_err(|e| ferr("transmission", e.to_string(), "correct the named field"))?;
-    let arm = arm
-        .with_flexible_links(flex)
-        .map_err(|e| ferr("flex", e.to_string(), "correct the named link's [[flex]] entry"))?;
+    let arm = arm.with_flexible_links(flex).map_err(|e| {
+        ferr(
+            "flex",
+            e.to_string(),
+            "correct the named link's [[flex]] entry",
+        )
+    })?;
     Ok(ArmScenario {
         arm,
         sim: doc.sim,
         urdf_path,
     })
+}
+
+/// Entry `i` of the array of tables `what` (`[[transmission]]`, `[[flex]]`) with its
+/// defaults merged in, deserialised; errors name the entry.
+fn table_entry<T: serde::de::DeserializeOwned>(
+    t: &toml::Table,
+    defaults: Option<&toml::Table>,
+    what: &str,
+    i: usize,
+    ferr: &dyn Fn(&str, String, &str) -> ScenarioError,
+) -> Result<T, ScenarioError> {
+    let mut t = t.clone();
+    if let Some(d) = defaults {
+        merge(&mut t, d);
+    }
+    toml::Value::Table(t)
+        .try_into()
+        .map_err(|e: toml::de::Error| {
+            ferr(
+                &format!("{what}.{i}"),
+                format!("{what} {i}: {}", e.message().trim()),
+                &format!("see docs/arm.md for the fields of a [[{what}]] table"),
+            )
+        })
 }
 
 /// `[[flex]]` entries (with `[flex_defaults]` merged in) -> flexible links; entries
@@ -652,17 +673,7 @@ fn parse_flex(
     let mut by_link: Vec<Option<(bool, crate::FlexLinkSpec)>> = vec![None; spec.links.len()];
     for (i, t) in doc.flex.iter().enumerate() {
         let f = |k: &str| format!("flex.{i}.{k}");
-        let mut t = t.clone();
-        if let Some(d) = &doc.flex_defaults {
-            merge(&mut t, d);
-        }
-        let sec: FlexSection = toml::Value::Table(t).try_into().map_err(|e: toml::de::Error| {
-            ferr(
-                &format!("flex.{i}"),
-                format!("flex {i}: {}", e.message().trim()),
-                "see docs/arm.md for the fields of a [[flex]] table",
-            )
-        })?;
+        let sec: FlexSection = table_entry(t, doc.flex_defaults.as_ref(), "flex", i, &ferr)?;
         let all = sec.link == "*";
         let links: Vec<usize> = if all {
             (1..spec.links.len()).collect()
@@ -735,13 +746,21 @@ fn parse_flex(
             };
             Applied::new(eff, values)
                 .and_then(|a| a.apply_to_link(&mut bending))
-                .map_err(|err| ferr(&field, err.to_string(), "give one value per parameter, within its bounds"))?;
+                .map_err(|err| {
+                    ferr(
+                        &field,
+                        err.to_string(),
+                        "give one value per parameter, within its bounds",
+                    )
+                })?;
         }
         for l in links {
             let mu = match (sec.mass_per_length_kg_m, sec.density_kg_m3) {
                 (Some(m), None) => Some(m),
                 (None, Some(rho)) => {
-                    let (Some(od), id) = (sec.outer_diameter_m, sec.inner_diameter_m.unwrap_or(0.0)) else {
+                    let (Some(od), id) =
+                        (sec.outer_diameter_m, sec.inner_diameter_m.unwrap_or(0.0))
+                    else {
                         return Err(ferr(
                             &f("density_kg_m3"),
                             "a density needs the tube's section".into(),
@@ -775,7 +794,14 @@ fn parse_flex(
                 None => true,
             };
             if keep {
-                by_link[l] = Some((all, if sec.rigid { crate::FlexLinkSpec { modes: 0, ..entry } } else { entry }));
+                by_link[l] = Some((
+                    all,
+                    if sec.rigid {
+                        crate::FlexLinkSpec { modes: 0, ..entry }
+                    } else {
+                        entry
+                    },
+                ));
             }
         }
     }
@@ -792,7 +818,11 @@ fn parse_flex(
             .iter()
             .position(|t| t.get("link").and_then(|v| v.as_str()) == Some(e.link.as_str()))
             .unwrap_or(0);
-        ferr(&format!("flex.{i}"), format!("link '{}': {}", e.link, e.reason), "correct the link's [[flex]] entry")
+        ferr(
+            &format!("flex.{i}"),
+            format!("link '{}': {}", e.link, e.reason),
+            "correct the link's [[flex]] entry",
+        )
     })?;
     Ok(out)
 }

@@ -8,8 +8,7 @@ use common::{kinematic, rig_pair, robot_path, uniform_pairs};
 use longreach_arm::modes::modes;
 use longreach_arm::transmission::Tensioner;
 use longreach_arm::{
-    load_urdf, parse_urdf, scenario, tube_ei_n_m2, Command, DrivenArm, FlexDynamics,
-    FlexLinkSpec,
+    load_urdf, parse_urdf, scenario, tube_ei_n_m2, Command, DrivenArm, FlexDynamics, FlexLinkSpec,
 };
 use longreach_drive::tf::rig_resonance;
 use longreach_drive::RigSpec;
@@ -56,7 +55,8 @@ fn cantilever_urdf() -> String {
 fn cantilever(modes: usize, tip_mass_kg: f64, zeta: f64) -> DrivenArm {
     let mut spec = parse_urdf(&cantilever_urdf(), "cantilever").unwrap();
     if tip_mass_kg > 0.0 {
-        spec.add_payload("tip", tip_mass_kg, Vector3::zeros()).unwrap();
+        spec.add_payload("tip", tip_mass_kg, Vector3::zeros())
+            .unwrap();
     }
     DrivenArm::new(spec, vec![], vec![Command::Hold], vec![0.0], 1e-3)
         .unwrap()
@@ -92,10 +92,16 @@ fn cantilever_sags_as_the_beam_formulas_say() {
             100.0 * (zp / tip - 1.0)
         );
         if modes >= 2 {
-            assert!((z0 / own - 1.0).abs() < 5e-3, "{modes} modes: own weight {z0} vs {own}");
+            assert!(
+                (z0 / own - 1.0).abs() < 5e-3,
+                "{modes} modes: own weight {z0} vs {own}"
+            );
         }
         if modes >= 3 {
-            assert!((zp / tip - 1.0).abs() < 5e-3, "{modes} modes: tip load {zp} vs {tip}");
+            assert!(
+                (zp / tip - 1.0).abs() < 5e-3,
+                "{modes} modes: tip load {zp} vs {tip}"
+            );
         }
     }
 }
@@ -139,15 +145,30 @@ fn cantilever_bending_frequencies() {
         );
     }
     println!("out of plane {out:?} vs {exact:?}");
-    assert!((out[0] / exact[0] - 1.0).abs() < 0.01, "{} vs {}", out[0], exact[0]);
-    assert!((out[1] / exact[1] - 1.0).abs() < 0.02, "{} vs {}", out[1], exact[1]);
+    assert!(
+        (out[0] / exact[0] - 1.0).abs() < 0.01,
+        "{} vs {}",
+        out[0],
+        exact[0]
+    );
+    assert!(
+        (out[1] / exact[1] - 1.0).abs() < 0.02,
+        "{} vs {}",
+        out[1],
+        exact[1]
+    );
 }
 
 fn root() -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-fn all_flexible(spec: &longreach_arm::ArmSpec, ei: f64, zeta: f64, modes: usize) -> Vec<FlexLinkSpec> {
+fn all_flexible(
+    spec: &longreach_arm::ArmSpec,
+    ei: f64,
+    zeta: f64,
+    modes: usize,
+) -> Vec<FlexLinkSpec> {
     (1..spec.links.len())
         .map(|l| FlexLinkSpec {
             link: l,
@@ -166,7 +187,13 @@ fn mass_matrix_is_the_inverse_dynamics_and_sags_are_consistent() {
     let nq = fd.ncoords();
     assert_eq!(nq, 5 + 5 * 4);
     let q: Vec<f64> = (0..nq)
-        .map(|i| if i < 5 { 0.3 * (i as f64 + 1.0).sin() } else { 0.01 * (i as f64).cos() })
+        .map(|i| {
+            if i < 5 {
+                0.3 * (i as f64 + 1.0).sin()
+            } else {
+                0.01 * (i as f64).cos()
+            }
+        })
         .collect();
     let mut k = fd.make_kin();
     fd.kinematics(&q, &mut k);
@@ -189,7 +216,8 @@ fn mass_matrix_is_the_inverse_dynamics_and_sags_are_consistent() {
         fdyn.rnea(&mut k, &q_nostiff, &zero, &zero, &mut tau0);
         for r in 0..nq {
             let d = (tau[r] - tau0[r]) - m[r * nq + c];
-            worst = worst.max(d.abs() / (1.0 + m[r * nq + r].abs().sqrt() * m[c * nq + c].abs().sqrt()));
+            worst = worst
+                .max(d.abs() / (1.0 + m[r * nq + r].abs().sqrt() * m[c * nq + c].abs().sqrt()));
         }
     }
     println!("M vs inverse dynamics: worst {worst:.2e}");
@@ -218,7 +246,9 @@ fn mass_matrix_is_the_inverse_dynamics_and_sags_are_consistent() {
 }
 
 fn longreach5_scenario(name: &str) -> DrivenArm {
-    scenario::load(&root().join("scenarios").join(name)).unwrap().arm
+    scenario::load(&root().join("scenarios").join(name))
+        .unwrap()
+        .arm
 }
 
 #[test]
@@ -245,13 +275,14 @@ fn stiff_links_are_the_rigid_arm() {
 #[test]
 fn the_rigid_flag_is_bitwise_the_rigid_arm() {
     let dir = tempfile::tempdir().unwrap();
-    let base = std::fs::read_to_string(root().join("scenarios/arm_dyneema2_distal_step.toml")).unwrap();
+    let base =
+        std::fs::read_to_string(root().join("scenarios/arm_dyneema2_distal_step.toml")).unwrap();
     let base = scenario::with_absolute_paths(&base, &root().join("scenarios"));
-    let flagged = format!(
-        "{base}\n[[flex]]\nlink = \"*\"\nei_n_m2 = 1e6\nrigid = true\n"
-    );
+    let flagged = format!("{base}\n[[flex]]\nlink = \"*\"\nei_n_m2 = 1e6\nrigid = true\n");
     let a = scenario::parse(&base, "base.toml", dir.path()).unwrap().arm;
-    let b = scenario::parse(&flagged, "flagged.toml", dir.path()).unwrap().arm;
+    let b = scenario::parse(&flagged, "flagged.toml", dir.path())
+        .unwrap()
+        .arm;
     assert!(b.flex().is_none());
     let (mut sa, mut sb) = (a.initial_state(), b.initial_state());
     for _ in 0..3000 {
@@ -264,7 +295,13 @@ fn the_rigid_flag_is_bitwise_the_rigid_arm() {
 
 /// The tubes of longreach5 (robots/longreach5/README.md), E = 110 GPa, 1600 kg/m^3.
 fn longreach5_tubes(damping_ratio: f64) -> Vec<FlexLinkSpec> {
-    let d = [(0.22, 0.21), (0.2, 0.191), (0.18, 0.172), (0.16, 0.153), (0.14, 0.134)];
+    let d = [
+        (0.22, 0.21),
+        (0.2, 0.191),
+        (0.18, 0.172),
+        (0.16, 0.153),
+        (0.14, 0.134),
+    ];
     d.iter()
         .enumerate()
         .map(|(i, &(od, id))| FlexLinkSpec {
@@ -284,7 +321,15 @@ fn undamped_flexible_arm_keeps_its_energy() {
     // the ropes. (Kicked rates, not displaced modes: the step starts from the state's
     // accelerations, and a displaced mode's would not be zero.)
     let spec = load_urdf(robot_path("longreach5/longreach5.urdf")).unwrap();
-    let pairs = uniform_pairs(&spec, "dyneema2", LawKind::Elastic, 0.1, 2000.0, Tensioner::Fixed, kinematic());
+    let pairs = uniform_pairs(
+        &spec,
+        "dyneema2",
+        LawKind::Elastic,
+        0.1,
+        2000.0,
+        Tensioner::Fixed,
+        kinematic(),
+    );
     let arm = DrivenArm::new(spec, pairs, vec![Command::Hold; 5], vec![0.0; 5], 1e-3)
         .unwrap()
         .with_joint_damping(0.0)
@@ -317,7 +362,10 @@ fn undamped_flexible_arm_keeps_its_energy() {
 
 #[test]
 fn modes_of_the_rig_are_its_transfer_functions_resonance() {
-    for (rope, kind) in [("stainless1", LawKind::Elastic), ("dyneema2", LawKind::FourElement)] {
+    for (rope, kind) in [
+        ("stainless1", LawKind::Elastic),
+        ("dyneema2", LawKind::FourElement),
+    ] {
         let params = Catalog::builtin().get(rope).unwrap().clone();
         let law = RopeLaw::from_params(&params, kind).unwrap();
         let mean = 490.0;
@@ -334,8 +382,16 @@ fn modes_of_the_rig_are_its_transfer_functions_resonance() {
             "{rope}: modes {:.4} Hz (zeta {:.4}, peak of its pole at {peak:.4} Hz; {} modes), eq. 12/13 resonance {:.4} Hz, shares {:?}",
             md.natural_hz, md.damping_ratio, m.modes.len(), res.frequency_hz, md.shares
         );
-        let tol = if kind == LawKind::Elastic { 0.002 } else { 0.02 };
-        assert!((peak / res.frequency_hz - 1.0).abs() < tol, "{rope}: {peak} vs {}", res.frequency_hz);
+        let tol = if kind == LawKind::Elastic {
+            0.002
+        } else {
+            0.02
+        };
+        assert!(
+            (peak / res.frequency_hz - 1.0).abs() < tol,
+            "{rope}: {peak} vs {}",
+            res.frequency_hz
+        );
     }
 }
 
@@ -350,7 +406,11 @@ fn modes_of_flexible_longreach5_are_the_peaks_of_its_impulse_response() {
             "{:8.3} Hz zeta {:.4}: {:?}",
             md.natural_hz,
             md.damping_ratio,
-            md.shares.iter().take(3).map(|s| format!("{} {:.0}%", s.part, 100.0 * s.share)).collect::<Vec<_>>()
+            md.shares
+                .iter()
+                .take(3)
+                .map(|s| format!("{} {:.0}%", s.part, 100.0 * s.share))
+                .collect::<Vec<_>>()
         );
     }
     // The response to a kick of every joint and mode, less the unkicked run (the
@@ -376,7 +436,9 @@ fn modes_of_flexible_longreach5_are_the_peaks_of_its_impulse_response() {
         series
             .iter()
             .map(|s| {
-                let rms = (s.iter().map(|x| x * x).sum::<f64>() / s.len() as f64).sqrt().max(1e-300);
+                let rms = (s.iter().map(|x| x * x).sum::<f64>() / s.len() as f64)
+                    .sqrt()
+                    .max(1e-300);
                 let (mut re, mut im) = (0.0, 0.0);
                 for (k, x) in s.iter().enumerate() {
                     let (sn, cs) = (w * k as f64).sin_cos();
@@ -394,12 +456,54 @@ fn modes_of_flexible_longreach5_are_the_peaks_of_its_impulse_response() {
         let f0 = md.damped_hz;
         let grid: Vec<f64> = (0..=80).map(|i| f0 * (0.96 + 0.001 * i as f64)).collect();
         let p: Vec<f64> = grid.iter().map(|&f| power(f)).collect();
-        let (imax, _) = p.iter().enumerate().max_by(|x, y| x.1.total_cmp(y.1)).unwrap();
+        let (imax, _) = p
+            .iter()
+            .enumerate()
+            .max_by(|x, y| x.1.total_cmp(y.1))
+            .unwrap();
         let peak = grid[imax];
         let interior = imax > 0 && imax < grid.len() - 1;
-        println!("mode {f0:.4} Hz (damped): spectrum peak {peak:.4} Hz ({:+.2}%), interior {interior}", 100.0 * (peak / f0 - 1.0));
-        assert!(interior && (peak / f0 - 1.0).abs() < 0.02, "mode {f0} Hz: peak at {peak} Hz");
+        println!(
+            "mode {f0:.4} Hz (damped): spectrum peak {peak:.4} Hz ({:+.2}%), interior {interior}",
+            100.0 * (peak / f0 - 1.0)
+        );
+        assert!(
+            interior && (peak / f0 - 1.0).abs() < 0.02,
+            "mode {f0} Hz: peak at {peak} Hz"
+        );
         checked += 1;
     }
     assert!(checked >= 3, "only {checked} lightly damped modes");
+}
+
+#[test]
+fn flex_entries_parse_and_name_their_errors() {
+    let sc = scenario::load(&root().join("scenarios/flex_dyneema2_base_step.toml")).unwrap();
+    let f = sc.arm.flex().expect("flexible");
+    assert_eq!(sc.arm.ncoords(), 5 + 5 * 4);
+    // The tube's own mass per length (density), the housings on the ends.
+    let l1 = &f.flex[0];
+    assert!((l1.mass_per_length_kg_m - 14.049202346854 / 2.6).abs() < 1e-6);
+    assert!((l1.ei_n_m2 - tube_ei_n_m2(E, 0.22, 0.21)).abs() < 1e-3);
+    let base =
+        std::fs::read_to_string(root().join("scenarios/arm_dyneema2_base_step.toml")).unwrap();
+    let base = scenario::with_absolute_paths(&base, &root().join("scenarios"));
+    let dir = tempfile::tempdir().unwrap();
+    let parse = |extra: &str| scenario::parse(&format!("{base}\n{extra}"), "f.toml", dir.path());
+    // The registry's link effect scales EI and sets the damping.
+    let a = parse("[[flex]]\nlink = \"link2\"\nei_n_m2 = 1e6\neffects = [{ name = \"link_flexibility\", params = [2.0, 0.05] }]\n").unwrap();
+    let l = &a.arm.flex().unwrap().flex[0];
+    assert!((l.ei_n_m2 - 2e6).abs() < 1e-6 && l.link == 2);
+    for (extra, field) in [
+        ("[[flex]]\nlink = \"nope\"\nei_n_m2 = 1e6\n", "flex.0.link"),
+        ("[[flex]]\nlink = \"link1\"\n", "flex.0"),
+        ("[[flex]]\nlink = \"link1\"\nei_n_m2 = 1e6\nmodes = 7\n", "flex.0.modes"),
+        ("[[flex]]\nlink = \"link1\"\nei_n_m2 = 1e6\nmass_per_length_kg_m = 100.0\n", "flex.0"),
+        ("[[flex]]\nlink = \"link1\"\nei_n_m2 = 1e6\neffects = [{ name = \"joint_friction\" }]\n", "flex.0.effects.0"),
+    ] {
+        let e = parse(extra).unwrap_err();
+        println!("{e}");
+        assert_eq!(e.field, field, "{extra}: {e}");
+        assert!(e.line.is_some() && !e.fix.is_empty(), "{e}");
+    }
 }
