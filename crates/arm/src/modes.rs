@@ -159,9 +159,7 @@ pub fn modes(arm: &DrivenArm) -> Result<Modes, ArmError> {
         });
     }
     let n = arm.njoints();
-    let arm = arm
-        .clone()
-        .with_commands(vec![crate::Command::Hold; n])?;
+    let arm = arm.clone().with_commands(vec![crate::Command::Hold; n])?;
     let st0 = arm.initial_state();
     let l = Layout {
         nq: st0.q_rad.len(),
@@ -197,7 +195,9 @@ pub fn modes(arm: &DrivenArm) -> Result<Modes, ArmError> {
         .collect();
     let m = live.len();
     // Balanced by the perturbation scales (the same eigenvalues; entries of order one).
-    let ar = DMatrix::from_fn(m, m, |i, j| a[(live[i], live[j])] * sc[live[j]] / sc[live[i]]);
+    let ar = DMatrix::from_fn(m, m, |i, j| {
+        a[(live[i], live[j])] * sc[live[j]] / sc[live[i]]
+    });
     let h = arm.dt_s();
     let eig = nalgebra::Schur::try_new(ar.clone(), 1e-11, 1000 * m.max(1))
         .ok_or_else(|| ArmError::BadTransmission {
@@ -251,7 +251,13 @@ pub fn modes(arm: &DrivenArm) -> Result<Modes, ArmError> {
 }
 
 /// The mode of pole `s` with the eigenvector `v` (packed layout).
-fn shape(arm: &DrivenArm, st0: &DrivenState, v: &[Complex<f64>], s: Complex<f64>, l: &Layout) -> Mode {
+fn shape(
+    arm: &DrivenArm,
+    st0: &DrivenState,
+    v: &[Complex<f64>],
+    s: Complex<f64>,
+    l: &Layout,
+) -> Mode {
     let nq = l.nq;
     let np = l.np;
     let n = arm.njoints();
@@ -301,7 +307,11 @@ fn shape(arm: &DrivenArm, st0: &DrivenState, v: &[Complex<f64>], s: Complex<f64>
             ends.push((name, [w1, w2]));
         }
     }
-    let total: f64 = parts.iter().map(|p| p.1).sum::<f64>().max(f64::MIN_POSITIVE);
+    let total: f64 = parts
+        .iter()
+        .map(|p| p.1)
+        .sum::<f64>()
+        .max(f64::MIN_POSITIVE);
     // Scale to 1 J, phase of the largest joint or link-end motion.
     let scale = 1.0 / total.sqrt();
     let pivot = dq
@@ -329,7 +339,10 @@ fn shape(arm: &DrivenArm, st0: &DrivenState, v: &[Complex<f64>], s: Complex<f64>
         damping_ratio: -s.re / s.norm(),
         shares,
         joints_rad: dq[..n].iter().map(|&c| re(c)).collect(),
-        link_end_m: ends.into_iter().map(|(nm, [a, b])| (nm, [re(a), re(b)])).collect(),
+        link_end_m: ends
+            .into_iter()
+            .map(|(nm, [a, b])| (nm, [re(a), re(b)]))
+            .collect(),
         motors_rad: dth.iter().map(|&c| re(c)).collect(),
         tensions_n: dtension.iter().map(|&c| re(c)).collect(),
     }

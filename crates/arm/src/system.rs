@@ -313,9 +313,8 @@ impl DrivenArm {
             }
             return Ok(self);
         }
-        let mut fd = FlexDynamics::new(&self.spec, &links).map_err(|e| {
-            bad(&format!("flex (link {})", e.link), e.reason)
-        })?;
+        let mut fd = FlexDynamics::new(&self.spec, &links)
+            .map_err(|e| bad(&format!("flex (link {})", e.link), e.reason))?;
         fd.set_gravity(self.spec.gravity_m_s2);
         let nq = fd.ncoords();
         self.flex = Some(fd);
@@ -327,7 +326,11 @@ impl DrivenArm {
         let tol = Some(self.drive.newton_tolerance());
         let mut compiled = Vec::with_capacity(self.drive.pairs.len());
         for (i, p) in self.drive.pairs.iter().enumerate() {
-            let jn = self.spec.joints.get(p.spec.joint).map_or("?", |j| j.name.as_str());
+            let jn = self
+                .spec
+                .joints
+                .get(p.spec.joint)
+                .map_or("?", |j| j.name.as_str());
             let field = format!("transmission[{i}] (joint {jn})");
             compiled.push(CompiledPair::new(p.spec.clone(), nq, self.dt_s, &field)?);
         }
@@ -343,7 +346,9 @@ impl DrivenArm {
     /// Number of generalised coordinates (the joints, then the flexible links' modes):
     /// the length of a state's `q_rad`.
     pub fn ncoords(&self) -> usize {
-        self.flex.as_ref().map_or(self.spec.ndofs(), |f| f.ncoords())
+        self.flex
+            .as_ref()
+            .map_or(self.spec.ndofs(), |f| f.ncoords())
     }
 
     /// The flexible links' dynamics, if any link bends.
@@ -461,7 +466,10 @@ impl DrivenArm {
             ff: vec![0.0; np],
             ref_rate: vec![0.0; np],
             last_qref: vec![f64::NAN; n],
-            fkin: self.flex.as_ref().map_or_else(FlexKin::default, |f| f.make_kin()),
+            fkin: self
+                .flex
+                .as_ref()
+                .map_or_else(FlexKin::default, |f| f.make_kin()),
             q1: vec![0.0; self.ncoords()],
             ftau: vec![0.0; self.ncoords()],
             sag_q: vec![0.0; self.ncoords()],
@@ -472,7 +480,14 @@ impl DrivenArm {
     /// Flexible arm: the modal coordinates that hold the links bent under gravity at
     /// the joint angles `q[..n]` (from the guess in `q`'s modal part), and the joints'
     /// gravity torques there into `g`.
-    fn sagged_gravity(&self, f: &FlexDynamics, q: &mut [f64], kin: &mut FlexKin, tau: &mut [f64], g: &mut [f64]) {
+    fn sagged_gravity(
+        &self,
+        f: &FlexDynamics,
+        q: &mut [f64],
+        kin: &mut FlexKin,
+        tau: &mut [f64],
+        g: &mut [f64],
+    ) {
         let zero = vec![0.0; q.len()];
         f.sag(kin, q, &zero, tau);
         let n = g.len();
