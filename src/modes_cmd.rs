@@ -76,7 +76,11 @@ pub fn run(args: &ModesArgs) -> Result<ExitCode> {
             format!("{:.3}", md.damped_hz),
             format!("{:.4}", md.damping_ratio),
             parts,
-            format!("{} {:+.2e} rad/sqrt(J)", spec.joints[j].name, q),
+            if q.abs() > 1e-9 {
+                format!("{} {:+.2e} rad/sqrt(J)", spec.joints[j].name, q)
+            } else {
+                "none (bending across the joints' plane)".into()
+            },
         ]);
     }
     println!(
