@@ -1,7 +1,9 @@
 //! Driven-arm step cost (one core, dt = 1 ms): the realistic longreach5 arm with
 //! four-element ropes, without and with relay friction (issue 4: >= 200x real time, i.e.
 //! <= 5 us/step, with relay friction on), the MuJoCo anchor arm5 with elastic ropes (compare with
-//! `../shared/anchors/mujoco/run.sh` in the same session), and the cost against the
+//! `../shared/anchors/mujoco/run.sh` in the same session), longreach5 with flexible links
+//! (two assumed modes per link and direction: issue 19 asks <= 3x the rigid step), and
+//! the cost against the
 //! number of links (3, 6, 12).
 //!
 //! Run: `cargo bench --bench arm` (the figures and the MuJoCo ratio are in docs/arm.md).
@@ -48,6 +50,11 @@ fn arm_benches(c: &mut Criterion) {
         c,
         "longreach5_dyneema2_four_element_servo_step",
         &scenario("arm_dyneema2_base_step.toml"),
+    );
+    bench_arm(
+        c,
+        "longreach5 four-element, flexible links (2 modes per direction)",
+        &scenario("flex_dyneema2_base_step.toml"),
     );
     bench_arm(
         c,

@@ -9,6 +9,7 @@ mod arm_ident_cmd;
 mod batch_cmd;
 mod bode;
 mod ident_cmd;
+mod modes_cmd;
 mod output;
 mod rerun_args;
 mod ropes;
@@ -43,6 +44,8 @@ enum Command {
     Merge(batch_cmd::MergeArgs),
     /// Run a driven arm scenario (URDF + rope transmissions + servos): time series and metrics.
     Run(run_cmd::RunArgs),
+    /// Modes of an arm scenario linearised at a pose: frequencies, damping, what rings.
+    Modes(modes_cmd::ModesArgs),
 }
 
 fn main() -> ExitCode {
@@ -57,6 +60,7 @@ fn main() -> ExitCode {
         Command::Batch(args) => batch_cmd::run(&args),
         Command::Merge(args) => batch_cmd::merge_run(&args),
         Command::Run(args) => run_cmd::run(&args),
+        Command::Modes(args) => modes_cmd::run(&args),
     };
     match result {
         Ok(code) => code,

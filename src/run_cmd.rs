@@ -133,6 +133,12 @@ pub fn run(args: &RunArgs) -> Result<ExitCode> {
         "tip position error at the end: {:.3} mm",
         1e3 * metrics.tip_error_m
     );
+    if let Some(d) = metrics.tip_deflection_m {
+        println!(
+            "of which the links' bending (tip vs straight links at the same joint angles): {:.3} mm",
+            1e3 * d
+        );
+    }
     for p in &metrics.pairs {
         if p.safety_factor < 3.0 {
             println!(

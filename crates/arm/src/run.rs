@@ -60,6 +60,10 @@ pub struct RunMetrics {
     pub pairs: Vec<PairMetrics>,
     /// Distance between the tip at the end and the tip at the final reference, m.
     pub tip_error_m: f64,
+    /// Flexible links: distance between the deflected tip at the end and where the
+    /// joint angles alone (straight links) put it, m.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tip_deflection_m: Option<f64>,
     /// Steps taken.
     pub steps: usize,
     /// Mean Newton iterations per step.
@@ -96,12 +100,19 @@ pub fn columns(arm: &DrivenArm) -> Vec<String> {
         }
     }
     c.extend(["tip_x_m", "tip_y_m", "tip_z_m"].map(String::from));
+    if let Some(f) = arm.flex() {
+        for l in &f.flex {
+            let name = &arm.spec().links[l.link].name;
+            c.push(format!("deflection_{name}_in_plane_m"));
+            c.push(format!("deflection_{name}_out_of_plane_m"));
+        }
+    }
     c
 }
 
 fn row(arm: &DrivenArm, st: &DrivenState) -> Result<Vec<f64>, ArmError> {
     let mut r = vec![st.time_s];
-    for j in 0..st.q_rad.len() {
+    for j in 0..arm.njoints() {
         r.push(st.q_rad[j]);
         r.push(st.q_ref_rad[j]);
     }
@@ -119,6 +130,13 @@ fn row(arm: &DrivenArm, st: &DrivenState) -> Result<Vec<f64>, ArmError> {
     }
     let tip = arm.tip_m(&st.q_rad)?;
     r.extend([tip.x, tip.y, tip.z]);
+    if let Some(f) = arm.flex() {
+        for l in &f.flex {
+            let eta = &st.q_rad[l.offset..l.offset + l.ncoords()];
+            let d = l.deflection(eta, l.length_m);
+            r.extend([d.dot(&l.e1), d.dot(&l.e2)]);
+        }
+    }
     Ok(r)
 }
 
@@ -153,7 +171,7 @@ pub fn run_observed(
 ) -> Result<(Trace, RunMetrics), ArmError> {
     let steps = (duration_s / arm.dt_s()).round() as usize;
     let mut st = arm.initial_state();
-    let n = st.q_rad.len();
+    let n = arm.njoints();
     let np = arm.pairs().len();
     let mut trace = Trace {
         columns: columns(arm),
@@ -287,12 +305,17 @@ pub fn run_observed(
         })
         .collect();
     let tip_error_m = (arm.tip_m(&st.q_rad)? - arm.tip_m(&st.q_ref_rad)?).norm();
+    let tip_deflection_m = match arm.flex() {
+        None => None,
+        Some(_) => Some((arm.tip_m(&st.q_rad)? - arm.tip_m(&st.q_rad[..n])?).norm()),
+    };
     Ok((
         trace,
         RunMetrics {
             joints,
             pairs,
             tip_error_m,
+            tip_deflection_m,
             steps,
             mean_iterations: iters as f64 / steps.max(1) as f64,
         },

@@ -29,6 +29,10 @@ struct ArmFile {
     payload: Option<PayloadSection>,
     #[serde(default)]
     effect: Vec<ArmEffectSection>,
+    #[serde(default)]
+    flex_defaults: Option<toml::Table>,
+    #[serde(default)]
+    flex: Vec<toml::Table>,
 }
 
 /// `[[effect]]`: a registered effect on the whole arm, at each of its sites.
@@ -41,6 +45,40 @@ struct ArmEffectSection {
     /// Only these joints (their pairs and bearings); default: every joint.
     #[serde(default)]
     joints: Option<Vec<String>>,
+}
+
+/// `[[flex]]`: a flexible link (`link = "*"`: every moving link).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FlexSection {
+    link: String,
+    #[serde(default)]
+    ei_n_m2: Option<f64>,
+    #[serde(default)]
+    youngs_modulus_pa: Option<f64>,
+    #[serde(default)]
+    outer_diameter_m: Option<f64>,
+    #[serde(default)]
+    inner_diameter_m: Option<f64>,
+    #[serde(default)]
+    mass_per_length_kg_m: Option<f64>,
+    #[serde(default)]
+    density_kg_m3: Option<f64>,
+    #[serde(default = "flex_damping")]
+    damping_ratio: f64,
+    #[serde(default = "two")]
+    modes: usize,
+    #[serde(default)]
+    rigid: bool,
+    #[serde(default)]
+    effects: Vec<EffectSection>,
+}
+
+fn flex_damping() -> f64 {
+    0.01
+}
+fn two() -> usize {
+    2
 }
 
 /// `[payload]`: a point mass carried by a link.
@@ -223,6 +261,9 @@ pub struct ArmScenario {
     /// the compiled pairs' specs ([`DrivenArm::pairs`]) they rebuild the arm with other
     /// numbers (the measurement loop's arm plant).
     pub joint_effects: Vec<(usize, Applied)>,
+    /// The flexible links (`[[flex]]`), as given to [`DrivenArm::with_flexible_links`]:
+    /// a rebuilt arm bends as the scenario's does.
+    pub flex_links: Vec<crate::FlexLinkSpec>,
 }
 
 /// Merges `defaults` into `t` (keys absent from `t`; nested tables recursively).
@@ -307,6 +348,8 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
     if !doc.arm.gravity {
         spec.gravity_m_s2 = nalgebra::Vector3::zeros();
     }
+    // Flexible links, from the URDF's own masses (a payload rides on the link's end).
+    let flex = parse_flex(&doc, &spec, text, file)?;
     // Arm-wide effects (`[[effect]]`), each applied at its sites: the payload's first,
     // before anything is built from the spec; the pairs' and joints' below.
     let mut arm_effects = Vec::new();
@@ -321,6 +364,20 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
                     e.name
                 ),
                 "keep sensor effects in model files for compare/diagnose",
+            ));
+        }
+        let mut probe = longreach_drive::effects::LinkBending {
+            ei_n_m2: 1.0,
+            damping_ratio: 0.0,
+        };
+        if a
+            .apply_to_link(&mut probe)
+            .map_err(|err| ferr(&field, err.to_string(), "give values within the bounds"))?
+        {
+            return Err(ferr(
+                &field,
+                format!("'{}' acts on a flexible link's bending", e.name),
+                "give it in the effects of that link's [[flex]] table (docs/arm.md)",
             ));
         }
         arm_effects.push((field, a));
@@ -415,20 +472,13 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
     // Parse every transmission (defaults merged in).
     let mut sections = Vec::new();
     for (i, t) in doc.transmission.iter().enumerate() {
-        let mut t = t.clone();
-        if let Some(d) = &doc.transmission_defaults {
-            merge(&mut t, d);
-        }
-        let sec: TransmissionSection =
-            toml::Value::Table(t)
-                .try_into()
-                .map_err(|e: toml::de::Error| {
-                    ferr(
-                        &format!("transmission.{i}"),
-                        format!("transmission {i}: {}", e.message().trim()),
-                        "see docs/arm.md for the fields of a [[transmission]] table",
-                    )
-                })?;
+        let sec: TransmissionSection = table_entry(
+            t,
+            doc.transmission_defaults.as_ref(),
+            "transmission",
+            i,
+            &ferr,
+        )?;
         sections.push(sec);
     }
     let joint_of = |name: &str, field: &str| {
@@ -486,6 +536,13 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
                     "relay friction given twice (as an effect and as relay_friction = {...})"
                         .into(),
                     "keep one of the two",
+                ));
+            }
+            if eff.site() == Site::Link {
+                return Err(ferr(
+                    &field,
+                    format!("'{}' acts at the link site, not on a rope pair", e.name),
+                    "give it to a [[flex]] link: effects = [{ name = \"link_flexibility\", params = [...] }]",
                 ));
             }
             applied.push((field, a));
@@ -649,11 +706,19 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
         s.dt_s,
     )
     .map_err(|e| ferr("transmission", e.to_string(), "correct the named field"))?;
+    let arm = arm.with_flexible_links(flex.clone()).map_err(|e| {
+        ferr(
+            "flex",
+            e.to_string(),
+            "correct the named link's [[flex]] entry",
+        )
+    })?;
     Ok(ArmScenario {
         arm,
         sim: doc.sim,
         urdf_path,
         joint_effects,
+        flex_links: flex,
     })
 }
 
@@ -742,6 +807,196 @@ fn apply_arm_effects(
         }
     }
     Ok(())
+}
+
+/// Entry `i` of the array of tables `what` (`[[transmission]]`, `[[flex]]`) with its
+/// defaults merged in, deserialised; errors name the entry.
+fn table_entry<T: serde::de::DeserializeOwned>(
+    t: &toml::Table,
+    defaults: Option<&toml::Table>,
+    what: &str,
+    i: usize,
+    ferr: &dyn Fn(&str, String, &str) -> ScenarioError,
+) -> Result<T, ScenarioError> {
+    let mut t = t.clone();
+    if let Some(d) = defaults {
+        merge(&mut t, d);
+    }
+    toml::Value::Table(t)
+        .try_into()
+        .map_err(|e: toml::de::Error| {
+            ferr(
+                &format!("{what}.{i}"),
+                format!("{what} {i}: {}", e.message().trim()),
+                &format!("see docs/arm.md for the fields of a [[{what}]] table"),
+            )
+        })
+}
+
+/// `[[flex]]` entries (with `[flex_defaults]` merged in) -> flexible links; entries
+/// with `rigid = true` stay rigid. A link named twice takes its own entry over `"*"`.
+fn parse_flex(
+    doc: &ArmFile,
+    spec: &crate::ArmSpec,
+    text: &str,
+    file: &str,
+) -> Result<Vec<crate::FlexLinkSpec>, ScenarioError> {
+    let ferr = |field: &str, msg: String, fix: &str| field_error(text, file, field, msg, fix);
+    let mut by_link: Vec<Option<(bool, crate::FlexLinkSpec)>> = vec![None; spec.links.len()];
+    for (i, t) in doc.flex.iter().enumerate() {
+        let f = |k: &str| format!("flex.{i}.{k}");
+        let sec: FlexSection = table_entry(t, doc.flex_defaults.as_ref(), "flex", i, &ferr)?;
+        let all = sec.link == "*";
+        let links: Vec<usize> = if all {
+            (1..spec.links.len()).collect()
+        } else {
+            match spec.link_index(&sec.link).filter(|&l| l > 0) {
+                Some(l) => vec![l],
+                None => {
+                    return Err(ferr(
+                        &f("link"),
+                        format!("no moving link named '{}'", sec.link),
+                        &format!(
+                            "use \"*\" or one of: {}",
+                            spec.links[1..]
+                                .iter()
+                                .map(|l| l.name.as_str())
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ),
+                    ))
+                }
+            }
+        };
+        let ei = match (sec.ei_n_m2, sec.youngs_modulus_pa, sec.outer_diameter_m) {
+            (Some(ei), None, None) => ei,
+            (None, Some(e), Some(od)) => {
+                let id = sec.inner_diameter_m.unwrap_or(0.0);
+                if !(od > 0.0 && (0.0..od).contains(&id) && e > 0.0) {
+                    return Err(ferr(
+                        &f("outer_diameter_m"),
+                        format!("E = {e} Pa, D = {od} m, d = {id} m"),
+                        "give E > 0 and diameters 0 <= inner < outer, in m",
+                    ));
+                }
+                crate::tube_ei_n_m2(e, od, id)
+            }
+            _ => {
+                return Err(ferr(
+                    &format!("flex.{i}"),
+                    "bending stiffness missing or given twice".into(),
+                    "give either ei_n_m2, or youngs_modulus_pa with outer_diameter_m (and inner_diameter_m)",
+                ))
+            }
+        };
+        if !sec.rigid && !(1..=crate::flex::MAX_MODES).contains(&sec.modes) {
+            return Err(ferr(
+                &f("modes"),
+                format!("modes = {}", sec.modes),
+                "give 1 to 4 assumed modes per transverse direction (2 is the default)",
+            ));
+        }
+        let mut bending = longreach_drive::effects::LinkBending {
+            ei_n_m2: ei,
+            damping_ratio: sec.damping_ratio,
+        };
+        for (e_i, e) in sec.effects.iter().enumerate() {
+            let field = f(&format!("effects.{e_i}"));
+            let eff = longreach_drive::effects::find(&e.name)
+                .filter(|e| e.site() == Site::Link)
+                .ok_or_else(|| {
+                    ferr(
+                        &field,
+                        format!("'{}' is not a registered effect at the link site", e.name),
+                        "use link_flexibility",
+                    )
+                })?;
+            let values = if e.params.is_empty() {
+                eff.params().iter().map(|p| p.default).collect()
+            } else {
+                e.params.clone()
+            };
+            Applied::new(eff, values)
+                .and_then(|a| a.apply_to_link(&mut bending))
+                .map_err(|err| {
+                    ferr(
+                        &field,
+                        err.to_string(),
+                        "give one value per parameter, within its bounds",
+                    )
+                })?;
+        }
+        for l in links {
+            let mu = match (sec.mass_per_length_kg_m, sec.density_kg_m3) {
+                (Some(m), None) => Some(m),
+                (None, Some(rho)) => {
+                    let (Some(od), id) =
+                        (sec.outer_diameter_m, sec.inner_diameter_m.unwrap_or(0.0))
+                    else {
+                        return Err(ferr(
+                            &f("density_kg_m3"),
+                            "a density needs the tube's section".into(),
+                            "give outer_diameter_m (and inner_diameter_m), or mass_per_length_kg_m",
+                        ));
+                    };
+                    Some(rho * std::f64::consts::PI * (od * od - id * id) / 4.0)
+                }
+                // The link's own URDF mass (before any payload) along its length.
+                (None, None) => crate::flex::beam_end(spec, l)
+                    .ok()
+                    .map(|e| spec.links[l].inertial.mass_kg / e.norm().max(1e-9)),
+                _ => {
+                    return Err(ferr(
+                        &f("density_kg_m3"),
+                        "mass per length given twice".into(),
+                        "give mass_per_length_kg_m or density_kg_m3, not both",
+                    ))
+                }
+            };
+            let entry = crate::FlexLinkSpec {
+                link: l,
+                ei_n_m2: bending.ei_n_m2,
+                damping_ratio: bending.damping_ratio,
+                modes: sec.modes,
+                mass_per_length_kg_m: mu,
+            };
+            // A link's own entry wins over "*".
+            let keep = match &by_link[l] {
+                Some((was_all, _)) => *was_all || !all,
+                None => true,
+            };
+            if keep {
+                by_link[l] = Some((
+                    all,
+                    if sec.rigid {
+                        crate::FlexLinkSpec { modes: 0, ..entry }
+                    } else {
+                        entry
+                    },
+                ));
+            }
+        }
+    }
+    let out: Vec<crate::FlexLinkSpec> = by_link
+        .into_iter()
+        .flatten()
+        .map(|(_, s)| s)
+        .filter(|s| s.modes > 0)
+        .collect();
+    // Check them now (the arm is built after the payload).
+    crate::FlexDynamics::new(spec, &out).map_err(|e| {
+        let i = doc
+            .flex
+            .iter()
+            .position(|t| t.get("link").and_then(|v| v.as_str()) == Some(e.link.as_str()))
+            .unwrap_or(0);
+        ferr(
+            &format!("flex.{i}"),
+            format!("link '{}': {}", e.link, e.reason),
+            "correct the link's [[flex]] entry",
+        )
+    })?;
+    Ok(out)
 }
 
 fn parse_command(

@@ -31,6 +31,7 @@
 use crate::command::Command;
 use crate::error::ArmError;
 use crate::fast::{FastDynamics, Kin};
+use crate::flex::{FlexDynamics, FlexKin, FlexLinkSpec};
 use crate::spec::ArmSpec;
 use longreach_drive::effects::{self, Applied, JointFriction};
 use longreach_drive::transmission::{
@@ -59,6 +60,9 @@ pub struct DrivenArm {
     ff_map: Vec<f64>,
     /// Driven joint of each row of `ff_map`'s input.
     driven: Vec<usize>,
+    /// The links' dynamics when some bend ([`crate::flex`]); `None`: every link rigid
+    /// (the rigid code path, unchanged).
+    flex: Option<FlexDynamics>,
 }
 
 /// Mutable state of a [`DrivenArm`]: the transmission core's state with the arm's own
@@ -78,6 +82,13 @@ pub struct ArmScratch {
     ref_rate: Vec<f64>,
     /// Joint references the motor references and feed-forward were computed for.
     last_qref: Vec<f64>,
+    /// Flexible arms: kinematics scratch, the trial coordinates of the iteration, the
+    /// generalised forces, and the sagged pose of the last references.
+    fkin: FlexKin,
+    q1: Vec<f64>,
+    ftau: Vec<f64>,
+    sag_q: Vec<f64>,
+    fzero: Vec<f64>,
 }
 
 /// Energy of the driven arm, J.
@@ -97,6 +108,8 @@ pub struct SystemEnergy {
     pub relays_kinetic_j: f64,
     /// Energy stored in the states of effects at the joints.
     pub effects_j: f64,
+    /// Bending of flexible links.
+    pub links_elastic_j: f64,
 }
 
 impl SystemEnergy {
@@ -109,6 +122,7 @@ impl SystemEnergy {
             + self.tensioners_j
             + self.relays_kinetic_j
             + self.effects_j
+            + self.links_elastic_j
     }
 }
 
@@ -284,7 +298,62 @@ impl DrivenArm {
             dt_s,
             ff_map,
             driven,
+            flex: None,
         })
+    }
+
+    /// The same arm with the links `links` flexible ([`crate::flex`]): each adds
+    /// `2 * modes` coordinates after the joints. An empty list leaves the arm rigid
+    /// (bitwise the rigid arm's results).
+    pub fn with_flexible_links(mut self, links: Vec<FlexLinkSpec>) -> Result<Self, ArmError> {
+        if links.is_empty() {
+            if self.flex.take().is_some() {
+                let n = self.spec.ndofs();
+                return self.recompile(n);
+            }
+            return Ok(self);
+        }
+        let mut fd = FlexDynamics::new(&self.spec, &links)
+            .map_err(|e| bad(&format!("flex (link {})", e.link), e.reason))?;
+        fd.set_gravity(self.spec.gravity_m_s2);
+        let nq = fd.ncoords();
+        self.flex = Some(fd);
+        self.recompile(nq)
+    }
+
+    /// The drivetrain again, for `nq` coordinates.
+    fn recompile(mut self, nq: usize) -> Result<Self, ArmError> {
+        let tol = Some(self.drive.newton_tolerance());
+        let mut compiled = Vec::with_capacity(self.drive.pairs.len());
+        for (i, p) in self.drive.pairs.iter().enumerate() {
+            let jn = self
+                .spec
+                .joints
+                .get(p.spec.joint)
+                .map_or("?", |j| j.name.as_str());
+            let field = format!("transmission[{i}] (joint {jn})");
+            compiled.push(CompiledPair::new(p.spec.clone(), nq, self.dt_s, &field)?);
+        }
+        self.drive = Drivetrain::new(compiled, self.drive.loads.clone(), nq, self.dt_s, tol)?;
+        Ok(self)
+    }
+
+    /// Number of joints.
+    pub fn njoints(&self) -> usize {
+        self.spec.ndofs()
+    }
+
+    /// Number of generalised coordinates (the joints, then the flexible links' modes):
+    /// the length of a state's `q_rad`.
+    pub fn ncoords(&self) -> usize {
+        self.flex
+            .as_ref()
+            .map_or(self.spec.ndofs(), |f| f.ncoords())
+    }
+
+    /// The flexible links' dynamics, if any link bends.
+    pub fn flex(&self) -> Option<&FlexDynamics> {
+        self.flex.as_ref()
     }
 
     /// Step, s.
@@ -336,7 +405,7 @@ impl DrivenArm {
 
     /// The same arm with another Newton tolerance (rad; see [`Self::newton_tolerance`]).
     pub fn with_newton_tolerance(mut self, tol: f64) -> Result<Self, ArmError> {
-        let n = self.spec.ndofs();
+        let n = self.ncoords();
         self.drive = Drivetrain::new(
             self.drive.pairs.clone(),
             self.drive.loads.clone(),
@@ -351,6 +420,9 @@ impl DrivenArm {
     /// studies), m/s^2.
     pub fn with_gravity(mut self, g: Vector3<f64>) -> Self {
         self.dynamics.set_gravity(g);
+        if let Some(f) = &mut self.flex {
+            f.set_gravity(g);
+        }
         self.spec.gravity_m_s2 = g;
         self
     }
@@ -367,6 +439,13 @@ impl DrivenArm {
     pub fn with_routing_compensation(mut self, compensate: bool) -> Self {
         self.compensate_routing = compensate;
         self
+    }
+
+    /// The same arm starting (and held, by commands that hold) at other joint angles.
+    pub fn with_initial_q_rad(mut self, q_rad: Vec<f64>) -> Result<Self, ArmError> {
+        crate::error::check_joint_vector(&self.spec.name, self.spec.ndofs(), "pose", &q_rad)?;
+        self.initial_q_rad = q_rad;
+        Ok(self)
     }
 
     /// The same arm driven by other commands (one per joint).
@@ -387,7 +466,32 @@ impl DrivenArm {
             ff: vec![0.0; np],
             ref_rate: vec![0.0; np],
             last_qref: vec![f64::NAN; n],
+            fkin: self
+                .flex
+                .as_ref()
+                .map_or_else(FlexKin::default, |f| f.make_kin()),
+            q1: vec![0.0; self.ncoords()],
+            ftau: vec![0.0; self.ncoords()],
+            sag_q: vec![0.0; self.ncoords()],
+            fzero: vec![0.0; self.ncoords()],
         }
+    }
+
+    /// Flexible arm: the modal coordinates that hold the links bent under gravity at
+    /// the joint angles `q[..n]` (from the guess in `q`'s modal part), and the joints'
+    /// gravity torques there into `g`.
+    fn sagged_gravity(
+        &self,
+        f: &FlexDynamics,
+        q: &mut [f64],
+        kin: &mut FlexKin,
+        tau: &mut [f64],
+        g: &mut [f64],
+    ) {
+        let zero = vec![0.0; q.len()];
+        f.sag(kin, q, &zero, tau);
+        let n = g.len();
+        g.copy_from_slice(&tau[..n]);
     }
 
     /// Static pair forces, tensions and stretches that hold the arm at `q_rad` under
@@ -396,7 +500,13 @@ impl DrivenArm {
         let mut kin = self.dynamics.make_kin();
         let n = self.spec.ndofs();
         let mut g = vec![0.0; n];
-        self.gravity_into(q_rad, &mut kin, &mut g);
+        if let Some(f) = &self.flex {
+            let mut q = self.padded(q_rad);
+            let mut tau = vec![0.0; q.len()];
+            self.sagged_gravity(f, &mut q, &mut f.make_kin(), &mut tau, &mut g);
+        } else {
+            self.gravity_into(q_rad, &mut kin, &mut g);
+        }
         (0..self.drive.pairs.len())
             .map(|p| self.static_pair(p, &g))
             .collect()
@@ -423,17 +533,55 @@ impl DrivenArm {
     /// The arm at rest at its initial angles, held by the ropes against gravity, motors
     /// at the angles that hold it.
     pub fn initial_state(&self) -> DrivenState {
-        let statics = self.static_pairs(&self.initial_q_rad);
-        self.drive
-            .rest_state(&self.initial_q_rad, &statics, self.make_scratch())
+        let Some(f) = &self.flex else {
+            let statics = self.static_pairs(&self.initial_q_rad);
+            return self
+                .drive
+                .rest_state(&self.initial_q_rad, &statics, self.make_scratch());
+        };
+        // Flexible links start bent under gravity, at rest.
+        let n = self.spec.ndofs();
+        let mut q = self.padded(&self.initial_q_rad);
+        let mut tau = vec![0.0; q.len()];
+        let mut g = vec![0.0; n];
+        self.sagged_gravity(f, &mut q, &mut f.make_kin(), &mut tau, &mut g);
+        let statics: Vec<StaticPair> = (0..self.drive.pairs.len())
+            .map(|p| self.static_pair(p, &g))
+            .collect();
+        let mut st = self.drive.rest_state(&q, &statics, self.make_scratch());
+        // The references of the modes: the straight links (the tip error counts the
+        // sag); the sagged pose is the guess of the references' own balance.
+        st.joint_scratch.sag_q.copy_from_slice(&q);
+        st.q_ref_rad[n..].fill(0.0);
+        st
+    }
+
+    /// `q` (joint angles, or every coordinate) with the modal coordinates, zero when
+    /// not given.
+    fn padded(&self, q: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; self.ncoords()];
+        let k = q.len().min(out.len());
+        out[..k].copy_from_slice(&q[..k]);
+        out
     }
 
     /// Energy of the state, J (see [`SystemEnergy`]).
     pub fn energy(&self, st: &DrivenState) -> SystemEnergy {
-        let mut kin = self.dynamics.make_kin();
-        self.dynamics.kinematics(&st.q_rad, &mut kin);
-        let links_kinetic_j = self.dynamics.kinetic_energy(&mut kin, &st.qd_rad_s);
-        let potential_j = self.dynamics.potential_energy(&kin);
+        let (links_kinetic_j, potential_j, links_elastic_j) = match &self.flex {
+            None => {
+                let mut kin = self.dynamics.make_kin();
+                self.dynamics.kinematics(&st.q_rad, &mut kin);
+                let ke = self.dynamics.kinetic_energy(&mut kin, &st.qd_rad_s);
+                (ke, self.dynamics.potential_energy(&kin), 0.0)
+            }
+            Some(f) => {
+                let mut kin = f.make_kin();
+                f.kinematics(&st.q_rad, &mut kin);
+                let mut m = vec![0.0; f.ncoords() * f.ncoords()];
+                let ke = f.kinetic_energy(&mut kin, &st.qd_rad_s, &mut m);
+                (ke, f.potential_energy(&kin), f.elastic_energy(&st.q_rad))
+            }
+        };
         let d = self.drive.energy(st);
         SystemEnergy {
             links_kinetic_j,
@@ -443,12 +591,30 @@ impl DrivenArm {
             tensioners_j: d.tensioners_j,
             relays_kinetic_j: d.relays_kinetic_j,
             effects_j: d.loads_j,
+            links_elastic_j,
         }
     }
 
     /// World position of the tip at `q_rad`, m.
+    /// With flexible links, `q_rad` may hold the modal coordinates after the joints
+    /// (the deflected tip; joint angles alone: the straight links).
     pub fn tip_m(&self, q_rad: &[f64]) -> Result<Vector3<f64>, ArmError> {
-        crate::dynamics::tip_position_m(&self.spec, q_rad)
+        match &self.flex {
+            None => crate::dynamics::tip_position_m(&self.spec, q_rad),
+            Some(f) => {
+                crate::error::check_joint_vector(
+                    &self.spec.name,
+                    self.spec.ndofs(),
+                    "q_rad",
+                    &q_rad[..self.spec.ndofs().min(q_rad.len())],
+                )?;
+                let q = self.padded(q_rad);
+                let mut kin = f.make_kin();
+                f.kinematics(&q, &mut kin);
+                let tip = &self.spec.tip;
+                Ok(f.point(&kin, &q, tip.link, &tip.link_from_frame.translation.vector))
+            }
+        }
     }
 
     /// Tensions `[+, -]` (N, per rope) every pair would have at the end of a step from
@@ -530,12 +696,19 @@ impl DrivenArm {
         }
         let sc = &mut st.joint_scratch;
         // The references only change while a command moves: reuse them otherwise.
-        let same_ref = sc.last_qref == st.q_ref_rad;
+        let same_ref = sc.last_qref[..] == st.q_ref_rad[..n];
         if !same_ref && !self.drive.pairs.is_empty() {
-            self.dynamics.kinematics(&st.q_ref_rad, &mut sc.kin);
-            self.dynamics
-                .rnea(&mut sc.kin, &sc.zero, &sc.zero, &mut sc.g);
-            sc.last_qref.copy_from_slice(&st.q_ref_rad);
+            if let Some(f) = &self.flex {
+                // Gravity of the arm bent under it at the references.
+                sc.sag_q[..n].copy_from_slice(&st.q_ref_rad[..n]);
+                f.sag(&mut sc.fkin, &mut sc.sag_q, &sc.fzero, &mut sc.ftau);
+                sc.g.copy_from_slice(&sc.ftau[..n]);
+            } else {
+                self.dynamics.kinematics(&st.q_ref_rad, &mut sc.kin);
+                self.dynamics
+                    .rnea(&mut sc.kin, &sc.zero, &sc.zero, &mut sc.g);
+            }
+            sc.last_qref.copy_from_slice(&st.q_ref_rad[..n]);
         }
         for (p, pair) in self.drive.pairs.iter().enumerate() {
             if same_ref {
@@ -577,28 +750,58 @@ impl JointSide for DrivenArm {
     type Scratch = ArmScratch;
 
     fn ndofs(&self) -> usize {
-        self.spec.ndofs()
+        self.ncoords()
     }
 
     fn begin_iteration(&self, sc: &mut ArmScratch, q1: &[f64]) {
-        self.dynamics.kinematics(q1, &mut sc.kin);
+        match &self.flex {
+            None => self.dynamics.kinematics(q1, &mut sc.kin),
+            Some(f) => {
+                f.kinematics(q1, &mut sc.fkin);
+                sc.q1.copy_from_slice(q1);
+            }
+        }
     }
 
     fn matrix(&self, sc: &mut ArmScratch, four_h2: f64, two_h: f64, out: &mut [f64]) {
-        let n = self.spec.ndofs();
-        self.dynamics.mass_matrix(&mut sc.kin, out);
+        let Some(f) = &self.flex else {
+            let n = self.spec.ndofs();
+            self.dynamics.mass_matrix(&mut sc.kin, out);
+            for v in out.iter_mut() {
+                *v *= four_h2;
+            }
+            for j in 0..n {
+                out[j * n + j] += two_h * self.damping[j];
+            }
+            return;
+        };
+        // The bending stiffness and damping are the links' own: in the matrix too.
+        let nq = f.ncoords();
+        f.mass_matrix(&mut sc.fkin, out);
         for v in out.iter_mut() {
             *v *= four_h2;
         }
-        for j in 0..n {
-            out[j * n + j] += two_h * self.damping[j];
+        for j in 0..self.spec.ndofs() {
+            out[j * nq + j] += two_h * self.damping[j];
         }
+        f.add_stiffness(1.0, two_h, out);
     }
 
     fn residual(&self, sc: &mut ArmScratch, v1: &[f64], a1: &[f64], out: &mut [f64]) {
-        self.dynamics.rnea(&mut sc.kin, v1, a1, &mut sc.tau);
-        for j in 0..out.len() {
-            out[j] = -(sc.tau[j] + self.damping[j] * v1[j]);
+        let Some(f) = &self.flex else {
+            self.dynamics.rnea(&mut sc.kin, v1, a1, &mut sc.tau);
+            for j in 0..out.len() {
+                out[j] = -(sc.tau[j] + self.damping[j] * v1[j]);
+            }
+            return;
+        };
+        f.rnea(&mut sc.fkin, &sc.q1, v1, a1, &mut sc.ftau);
+        let n = self.spec.ndofs();
+        for j in 0..n {
+            out[j] = -(sc.ftau[j] + self.damping[j] * v1[j]);
+        }
+        for c in n..out.len() {
+            out[c] = -sc.ftau[c];
         }
     }
 }

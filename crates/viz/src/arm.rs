@@ -97,8 +97,9 @@ impl Layout {
     fn push(&self, arm: &DrivenArm, st: &DrivenState, out: &mut Vec<f64>) {
         let np = self.pairs;
         out.push(st.time_s);
-        out.extend_from_slice(&st.q_rad);
-        out.extend_from_slice(&st.q_ref_rad);
+        // The joints (a flexible arm's modal coordinates follow them: not drawn yet).
+        out.extend_from_slice(&st.q_rad[..self.joints]);
+        out.extend_from_slice(&st.q_ref_rad[..self.joints]);
         out.extend_from_slice(&st.motor_rad[..np]);
         out.extend_from_slice(&st.motor_ref_rad[..np]);
         out.extend_from_slice(&st.motor_torque_n_m[..np]);

@@ -7,6 +7,7 @@ mod common;
 mod driven;
 mod dynamics;
 mod effects;
+mod flex;
 mod joint_friction;
 mod multibody;
 mod payload;

@@ -87,6 +87,7 @@ mod extra_retardation;
 mod internal_damping;
 mod joint_friction;
 mod motor_friction;
+mod link_flexibility;
 mod nonlinear_creep;
 mod nonlinear_stiffness;
 mod payload_mass;
@@ -99,6 +100,7 @@ pub use extra_retardation::ExtraRetardation;
 pub use internal_damping::InternalDamping;
 pub use joint_friction::{BearingFriction, JointFriction};
 pub use motor_friction::MotorFrictionEffect;
+pub use link_flexibility::LinkFlexibility;
 pub use nonlinear_creep::NonlinearCreepEffect;
 pub use nonlinear_stiffness::NonlinearStiffness;
 pub use payload_mass::PayloadMass;
@@ -112,6 +114,16 @@ use longreach_rope::{RopeLaw, Table};
 
 use crate::transmission::PairSpec;
 use crate::DriveError;
+
+/// The bending of a flexible link of an arm, as an effect at the link site sees it
+/// ([`Effect::on_link`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LinkBending {
+    /// Bending stiffness `E I`, N*m^2.
+    pub ei_n_m2: f64,
+    /// Structural damping ratio of its bending modes.
+    pub damping_ratio: f64,
+}
 
 /// The kind of measurement an effect is looked for in (the `kind` of a dataset).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -137,7 +149,8 @@ pub enum Site {
     RelayPulley,
     /// A joint: the rig's output shaft, an arm's joint ([`Effect::joint_force`]).
     Joint,
-    /// A link of an arm: its mass, the payload it carries ([`Effect::on_payload`]).
+    /// A link of an arm: the payload it carries ([`Effect::on_payload`]), its bending
+    /// ([`Effect::on_link`]).
     Link,
     /// The motor of a rope pair ([`Effect::on_pair`]).
     Motor,
@@ -244,6 +257,10 @@ pub trait Effect: Sync + std::fmt::Debug {
     /// anything is built from the arm: dynamics, gravity feed-forward, statics).
     fn on_payload(&self, _args: Args<'_>, _payload: &mut Payload) -> Result<(), DriveError> {
         Ok(())
+    }
+    /// Link site: changes the bending of a flexible link; `true` when it did.
+    fn on_link(&self, _args: Args<'_>, _link: &mut LinkBending) -> Result<bool, DriveError> {
+        Ok(false)
     }
     /// Sensor site: how the effect changes what a sensor reports (`None`: it does not).
     fn sensor(&self, _args: Args<'_>) -> Result<Option<Arc<dyn SensorModel>>, DriveError> {
@@ -353,6 +370,7 @@ pub static REGISTRY: &[&dyn Effect] = &[
     &plastic_ratchet::PlasticRatchet,
     &relay_friction::RelayFrictionEffect,
     &joint_friction::JointFriction,
+    &link_flexibility::LinkFlexibility,
     &sensor_delay::SensorDelay,
     &motor_friction::MotorFrictionEffect,
     &payload_mass::PayloadMass,
@@ -490,6 +508,12 @@ impl Applied {
             });
         }
         Ok(())
+    }
+
+    /// Applies the link hook to a flexible link's bending; `true` when the effect acts
+    /// there.
+    pub fn apply_to_link(&self, link: &mut LinkBending) -> Result<bool, DriveError> {
+        self.effect.on_link(self.args(), link)
     }
 
     /// What the effect does to a sensor, if anything.

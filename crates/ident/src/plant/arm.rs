@@ -82,6 +82,7 @@ struct ArmParts {
     spec: ArmSpec,
     pairs: Vec<PairSpec>,
     joint_effects: Vec<(usize, Applied)>,
+    flex_links: Vec<longreach_arm::FlexLinkSpec>,
     initial_q_rad: Vec<f64>,
 }
 
@@ -91,6 +92,7 @@ impl ArmParts {
             spec: sc.arm.spec().clone(),
             pairs: sc.arm.pairs().iter().map(|p| p.spec.clone()).collect(),
             joint_effects: sc.joint_effects,
+            flex_links: sc.flex_links,
             initial_q_rad: sc.arm.initial_q_rad().to_vec(),
         }
     }
@@ -207,6 +209,7 @@ impl<'a> ArmPlant<'a> {
             initial,
             dt_s,
         )
+        .and_then(|arm| arm.with_flexible_links(parts.flex_links.clone()))
         .map_err(|e| err(e.to_string()))
     }
 }
