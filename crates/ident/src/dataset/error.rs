@@ -5,8 +5,7 @@ use std::path::{Path, PathBuf};
 
 use super::{FORMAT, KINDS};
 
-const FORMAT_HINT: &str =
-    "the format longreach-measurement/1 is described in docs/measurements.md";
+const FORMAT_HINT: &str = "the format longreach-measurement/1 is described in docs/measurements.md";
 
 /// Everything that can go wrong reading or writing a dataset. Each message names the
 /// file, the line (where there is one) and the field or column, and says what to do.
@@ -228,6 +227,9 @@ pub enum DatasetError {
         #[source]
         source: Box<DatasetError>,
     },
+    /// The output folder could not be written, or is not ours to replace.
+    #[error("{0}")]
+    Write(#[from] longreach_scenario::atomic::WriteError),
 }
 
 fn fmt_line(line: Option<usize>) -> String {
