@@ -128,6 +128,22 @@ impl<'a> Prepared<'a> {
                 .map(|r| RunData::tension_run(&r.name, &r.time_s, &r.tension_n))
                 .collect(),
         };
+        for run in &runs {
+            let n = run.idx.len();
+            let first = run.idx.first().map(|&i| run.measured[i]);
+            let varies = first.is_some_and(|f| run.idx.iter().any(|&i| run.measured[i] != f));
+            if !varies {
+                return Err(IdentError::NoVariation {
+                    dir: ds.dir.display().to_string(),
+                    run: run.name.clone(),
+                    channel: match &ds.kind {
+                        DatasetKind::SineSweep(_) => "output_angle_rad",
+                        _ => "tension_n",
+                    },
+                    samples: n,
+                });
+            }
+        }
         Ok(Self {
             ds,
             kind: data_kind(ds),
