@@ -4,6 +4,7 @@
 
 mod arm_cli;
 mod arm_scenarios;
+mod bad_inputs;
 mod batch;
 mod batch_arm;
 mod bode_cli;
