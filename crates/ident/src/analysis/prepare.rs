@@ -131,7 +131,12 @@ impl<'a> Prepared<'a> {
         for run in &runs {
             let n = run.idx.len();
             let first = run.idx.first().map(|&i| run.measured[i]);
-            let varies = first.is_some_and(|f| run.idx.iter().any(|&i| run.measured[i] != f));
+            // Exactly constant (bit for bit): any variation at all gives a number.
+            let varies = first.is_some_and(|f| {
+                run.idx
+                    .iter()
+                    .any(|&i| run.measured[i].to_bits() != f.to_bits())
+            });
             if !varies {
                 return Err(IdentError::NoVariation {
                     dir: ds.dir.display().to_string(),
