@@ -9,5 +9,6 @@ mod batch;
 mod batch_arm;
 mod bode_cli;
 mod ident_cli;
+mod parser_fuzz;
 mod rerun_cli;
 mod rig_frequency_response;
