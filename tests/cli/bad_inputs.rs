@@ -8,6 +8,7 @@
 //! contains = ["sweep.settle_s", "fix"]   # words the output must hold (case-insensitive)
 //! keep = ["photos/cat.txt"]          # files that must be byte-identical afterwards
 //! stdout_closed = true               # optional: run with a closed stdout
+//! written = { "m.json" = ["warnings"] }  # optional: files written, with words they hold
 //! ```
 //!
 //! Each case runs on a copy in a temporary folder, with a timeout (a hang fails and is
@@ -33,6 +34,10 @@ struct Case {
     keep: Vec<String>,
     #[serde(default)]
     stdout_closed: bool,
+    /// Files the command must write, with words each must hold (e.g. a warning
+    /// recorded in the JSON).
+    #[serde(default)]
+    written: std::collections::BTreeMap<String, Vec<String>>,
 }
 
 fn corpus() -> PathBuf {
@@ -163,6 +168,16 @@ fn run_case(dir: &Path) -> Result<(), String> {
             Ok(after) if after == before => {}
             Ok(_) => problems.push(format!("{kept} was changed")),
             Err(_) => problems.push(format!("{kept} was lost")),
+        }
+    }
+    for (file, words) in &case.written {
+        match std::fs::read_to_string(work.join(file)) {
+            Ok(text) => {
+                for w in words.iter().filter(|w| !text.contains(w.as_str())) {
+                    problems.push(format!("{file} lacks \"{w}\""));
+                }
+            }
+            Err(_) => problems.push(format!("{file} was not written")),
         }
     }
     let mut files = Vec::new();
