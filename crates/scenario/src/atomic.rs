@@ -33,11 +33,8 @@ impl std::fmt::Display for WriteError {
     }
 }
 
-impl std::error::Error for WriteError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        self.source.as_ref().map(|e| e as _)
-    }
-}
+// The message already quotes the cause: no `source()`, or `{:#}` would print it twice.
+impl std::error::Error for WriteError {}
 
 fn err(path: &Path, action: &'static str, fix: &str, source: io::Error) -> WriteError {
     WriteError {

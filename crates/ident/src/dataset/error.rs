@@ -228,7 +228,7 @@ pub enum DatasetError {
         source: Box<DatasetError>,
     },
     /// The output folder could not be written, or is not ours to replace.
-    #[error("{0}")]
+    #[error(transparent)]
     Write(#[from] longreach_scenario::atomic::WriteError),
 }
 
