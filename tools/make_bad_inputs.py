@@ -39,10 +39,8 @@ if os.path.exists(ROOT):
     shutil.rmtree(ROOT)
 
 # ---------------------------------------------------------------- bode scenarios
-BODE = '''title = "tiny"
-kind = "bode"
-
-[rig]
+# The paper's rig: the [rig] table of Bode scenarios and sweep datasets alike.
+RIG = '''[rig]
 rope = "dyneema2"
 rope_length_m = 15.2
 input_radius_m = 0.025
@@ -52,7 +50,11 @@ output_damping_n_m_s = 0.05
 relay_pulleys = 3
 relay_radius_m = 0.025
 tensioner = "constant_force"
-prestretch_n = 490.0
+'''
+BODE = '''title = "tiny"
+kind = "bode"
+
+''' + RIG + '''prestretch_n = 490.0
 
 [sweep]
 mean_tensions_n = [98.0]
@@ -338,17 +340,7 @@ SWEEP_TOML = '''format = "longreach-measurement/1"
 kind = "sine_sweep"
 title = "tiny"
 
-[rig]
-rope = "dyneema2"
-rope_length_m = 15.2
-input_radius_m = 0.025
-output_radius_m = 0.025
-output_inertia_kg_m2 = 0.0284
-output_damping_n_m_s = 0.05
-relay_pulleys = 3
-relay_radius_m = 0.025
-tensioner = "constant_force"
-
+''' + RIG + '''
 [[run]]
 file = "run.csv"
 mean_tension_n = 98.0
