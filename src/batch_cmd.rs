@@ -160,6 +160,13 @@ impl ScenarioKind for ArmKind {
 
 /// Runs `longreach batch`.
 pub fn run(args: &BatchArgs) -> Result<ExitCode> {
+    let max_jobs = longreach_scenario::limits::max_jobs();
+    if let Some(j) = args.jobs.filter(|&j| j == 0 || j > max_jobs) {
+        bail!(
+            "-j {j}: this machine runs at most {max_jobs} worker threads ({} per core)\n  fix: give -j between 1 and {max_jobs}, or leave it out for one per core",
+            longreach_scenario::limits::JOBS_PER_CORE
+        );
+    }
     let batch = Batch::from_file(&args.file, &kinds())?;
     let shard = match &args.shard {
         Some(s) => Some(Shard::parse(s).map_err(|e| anyhow!(e))?),
@@ -194,6 +201,7 @@ pub fn run(args: &BatchArgs) -> Result<ExitCode> {
         shard,
         axes: batch.axis_names(),
     };
+    crate::output::output_dir(&dir, "--out")?;
     let (mut journal, mut rows) = Journal::open(&dir, &header, args.resume)?;
     let done: std::collections::BTreeSet<usize> = rows.iter().map(|r| r.index).collect();
     let todo: Vec<usize> = mine.into_iter().filter(|i| !done.contains(i)).collect();
@@ -257,7 +265,7 @@ pub fn run(args: &BatchArgs) -> Result<ExitCode> {
 /// Runs the `selected` scenarios again with a Rerun recorder into `dir/<index>.rrd`
 /// (the same inputs give the same results, so the recording shows the row's run).
 fn record_selected(batch: &Batch, selected: &[usize], dir: &Path, hz: f64) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    crate::output::output_dir(dir, "--out")?;
     for &i in selected {
         let s = batch.scenario(i);
         let label = format!("{} scenario {i}", batch.file);
@@ -382,8 +390,7 @@ pub fn merge_run(args: &MergeArgs) -> Result<ExitCode> {
         args.shards.clone()
     };
     let (header, rows) = merge(&shards)?;
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    crate::output::output_dir(&args.out, "--out")?;
     eprintln!(
         "merged {} shard folders of batch {}: {} rows",
         shards.len(),

@@ -59,6 +59,7 @@ struct JsonOut<'a> {
     law: String,
     dt_s: f64,
     runs: Vec<JsonRun<'a>>,
+    warnings: &'a [String],
 }
 
 fn fmt_opt(v: Option<f64>, digits: usize) -> String {
@@ -68,6 +69,9 @@ fn fmt_opt(v: Option<f64>, digits: usize) -> String {
 /// Runs the scenario and writes what was asked.
 pub fn run(args: &BodeArgs) -> Result<ExitCode> {
     let scenario = BodeScenario::from_file(&args.scenario)?;
+    for w in &scenario.warnings {
+        eprintln!("warning: {w}");
+    }
     let rec = args.rerun.recorder(
         &args.scenario.display().to_string(),
         &rerun_args::default_rrd(None, &args.scenario, ""),
@@ -182,6 +186,7 @@ pub fn run(args: &BodeArgs) -> Result<ExitCode> {
             rope: &rig.rope_name,
             law: law.to_string(),
             dt_s: scenario.dt_s,
+            warnings: &scenario.warnings,
             runs: runs
                 .iter()
                 .map(|r| JsonRun {

@@ -115,7 +115,8 @@ pub struct SynthArgs {
     #[arg(long)]
     model: Option<PathBuf>,
     /// Hidden effect `name=v1,v2,..` (parameters in the effect's order; `name` alone
-    /// uses the defaults). Repeatable. `longreach synth --list-effects` lists them.
+    /// uses the defaults). Repeatable. An unknown name lists the registered effects;
+    /// docs/models.md ("Effects") describes them and their parameters.
     #[arg(long = "effect")]
     effects: Vec<String>,
     /// Mean tensions of the sweep runs [N].
@@ -141,8 +142,34 @@ pub struct SynthArgs {
 /// An ident error ([`longreach_ident::IdentError`], [`longreach_ident::model::ModelError`])
 /// as the CLI reports it: its message alone. The message already quotes its cause, which
 /// `{:#}` would print a second time if the cause were kept as a source.
-fn message(e: impl std::fmt::Display) -> anyhow::Error {
-    anyhow!("{e}")
+/// A numerical failure of the loop (a simulation that blew up, no start that fits)
+/// becomes [`crate::Numerical`] (exit 3); every other error is bad input (exit 2).
+fn message<E: std::fmt::Display + 'static>(e: E) -> anyhow::Error {
+    use longreach_ident::IdentError;
+    let numerical = matches!(
+        (&e as &dyn std::any::Any).downcast_ref::<IdentError>(),
+        Some(
+            IdentError::Simulation { .. }
+                | IdentError::NoStartSimulated { .. }
+                | IdentError::NoStartFitted { .. }
+        )
+    );
+    if numerical {
+        anyhow::Error::new(crate::Numerical(e.to_string()))
+    } else {
+        anyhow!("{e}")
+    }
+}
+
+/// Refuses a result that is not a number the model stands behind (exit 3): every
+/// `(name, value)` must be finite.
+fn check_finite(what: &str, values: &[(String, f64)]) -> Result<()> {
+    if let Some((name, v)) = values.iter().find(|(_, v)| !v.is_finite()) {
+        return Err(anyhow::Error::new(crate::Numerical(format!(
+            "{what}: {name} = {v} is not a finite number, so no result is reported\n  fix: a parameter the data cannot determine should be fixed in the model file (fit = false, docs/models.md); check that the runs excite what is fitted"
+        ))));
+    }
+    Ok(())
 }
 
 fn load(data: &DataArgs) -> Result<(Dataset, Model)> {
@@ -214,6 +241,21 @@ pub fn run_fit(a: &FitArgs) -> Result<ExitCode> {
     let (ds, model) = load(&a.data)?;
     let prep = Prepared::new(&ds).map_err(message)?;
     let f = analysis::fit_model(&prep, &model).map_err(message)?;
+    let mut numbers = vec![
+        ("NRMSE before".to_string(), f.nrmse_before),
+        ("NRMSE".to_string(), f.nrmse),
+        ("noise floor".to_string(), f.noise_floor),
+    ];
+    if let Some(r) = &f.fit {
+        let specs = model.fit_specs(prep.runs.len());
+        for (i, s) in specs.iter().enumerate() {
+            let (lo, hi) = r.interval_95[i];
+            numbers.push((format!("{} value", s.name), r.values[i]));
+            numbers.push((format!("{} std error", s.name), r.std_errors[i]));
+            numbers.push((format!("{} 95% interval", s.name), hi - lo));
+        }
+    }
+    check_finite("fit", &numbers)?;
     let mut table = Table::new();
     table.set_header(vec![
         "parameter",
@@ -357,6 +399,16 @@ pub fn run_compare(a: &CompareArgs) -> Result<ExitCode> {
     let prep = Prepared::new(&ds).map_err(message)?;
     let sims = prep.simulate(&model).map_err(message)?;
     let c = analysis::compare(&prep, &model, &sims).map_err(message)?;
+    let mut numbers = vec![
+        ("NRMSE".to_string(), c.nrmse),
+        ("noise floor".to_string(), c.noise_floor_nrmse),
+    ];
+    numbers.extend(
+        c.runs
+            .iter()
+            .map(|r| (format!("run {} NRMSE", r.run), r.nrmse)),
+    );
+    check_finite("compare", &numbers)?;
     longreach_viz::ident::log_comparison(&rec, &prep, &c, &sims, None, None);
     rerun_args::finish(rec);
     print_comparison(&c);
@@ -499,6 +551,9 @@ fn parse_effect(s: &str) -> Result<(&'static dyn effects::Effect, Vec<f64>)> {
             .collect::<Result<_, _>>()
             .with_context(|| format!("--effect {s}: parameters must be numbers"))?
     };
+    if let Some(x) = v.iter().find(|x| !x.is_finite()) {
+        bail!("--effect {s}: parameter {x} is not a finite number\n  fix: give finite values, e.g. --effect {}", e.name());
+    }
     if v.len() != e.params().len() {
         bail!(
             "--effect {s}: {} takes {} parameter(s): {}",
@@ -527,6 +582,8 @@ pub fn run_synth(a: &SynthArgs) -> Result<ExitCode> {
         (Some(k), None) => k,
         (None, None) => bail!("give --kind sine-sweep | relaxation, or --arm SCENARIO"),
     };
+    // Refuse an --out that is not ours before the (long) simulation, not after it.
+    longreach_ident::dataset::check_target(&a.out)?;
     // An arm dataset's plan is the dataset its model is read against; otherwise a
     // placeholder dataset only supplies the rope name for a model file's defaults.
     let arm_plan = match &a.arm {
@@ -626,7 +683,7 @@ fn write_report(
     sims: &[Vec<f64>],
     diag: Option<(&analysis::Diagnosis, &Vec<Vec<f64>>)>,
 ) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    crate::output::output_dir(dir, "--report")?;
     let mut md = format!("# {} — model vs measurement\n\n", c.dataset);
     md.push_str(&format!(
         "Overall NRMSE **{:.4}** (noise floor {:.4}).\n\n| run | NRMSE | floor | share |\n|---|---|---|---|\n",

@@ -48,7 +48,88 @@ enum Command {
     Modes(modes_cmd::ModesArgs),
 }
 
+/// Exit codes (README "Exit codes"): 0 ok, 1 some batch rows failed, 2 bad input or
+/// usage, 3 a run failed numerically; a closed stdout ends quietly with 141, as the
+/// SIGPIPE a C tool would die of.
+pub mod exit {
+    /// Some rows of a batch failed or were invalid (the table is written).
+    pub const ROWS_FAILED: u8 = 1;
+    /// Bad input or usage: the message names the file, line or field and the fix.
+    pub const BAD_INPUT: u8 = 2;
+    /// A run failed numerically (blow-up, a result that is not a finite number).
+    pub const NUMERICAL: u8 = 3;
+    /// stdout was closed by its reader (`longreach ... | head -1`).
+    pub const BROKEN_PIPE: u8 = 141;
+}
+
+/// A run that failed numerically (exit 3): non-finite states or metrics.
+#[derive(Debug)]
+pub struct Numerical(pub String);
+
+impl std::fmt::Display for Numerical {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Numerical {}
+
+/// The exit code of an error: numerical failures of the physics are 3, a closed
+/// stdout 141, everything else (input, usage, files) 2.
+fn exit_code(e: &anyhow::Error) -> u8 {
+    use longreach_drive::DriveError;
+    use longreach_ident::IdentError;
+    for cause in e.chain() {
+        if let Some(io) = cause.downcast_ref::<std::io::Error>() {
+            if io.kind() == std::io::ErrorKind::BrokenPipe {
+                return exit::BROKEN_PIPE;
+            }
+        }
+        let numerical = cause.is::<Numerical>()
+            || matches!(
+                cause.downcast_ref::<DriveError>(),
+                Some(DriveError::BlowUp { .. })
+            )
+            || matches!(
+                cause.downcast_ref::<longreach_arm::ArmError>(),
+                Some(longreach_arm::ArmError::BlowUp { .. })
+            )
+            || matches!(
+                cause.downcast_ref::<IdentError>(),
+                Some(
+                    IdentError::Simulation { .. }
+                        | IdentError::NoStartSimulated { .. }
+                        | IdentError::NoStartFitted { .. }
+                )
+            );
+        if numerical {
+            return exit::NUMERICAL;
+        }
+    }
+    exit::BAD_INPUT
+}
+
+/// A closed stdout makes `println!` panic with "failed printing to stdout: Broken
+/// pipe": end quietly instead (no message, exit 141), as a tool killed by SIGPIPE would.
+/// Every other panic keeps the default report.
+fn quiet_on_broken_pipe() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let msg = info
+            .payload()
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| info.payload().downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if msg.contains("Broken pipe") || msg.contains("os error 32") {
+            std::process::exit(i32::from(exit::BROKEN_PIPE));
+        }
+        default(info);
+    }));
+}
+
 fn main() -> ExitCode {
+    quiet_on_broken_pipe();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Bode(args) => bode::run(&args),
@@ -65,8 +146,11 @@ fn main() -> ExitCode {
     match result {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {e:#}");
-            ExitCode::from(2)
+            let code = exit_code(&e);
+            if code != exit::BROKEN_PIPE {
+                eprintln!("error: {e:#}");
+            }
+            ExitCode::from(code)
         }
     }
 }

@@ -1,42 +1,39 @@
-//! Writing result files atomically: a failed run leaves nothing half-written.
+//! Writing result files atomically (through `longreach_scenario::atomic`, the one
+//! helper): a failed run leaves nothing half-written, and nothing of the user's is
+//! replaced by surprise.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
+use longreach_scenario::atomic;
 
-/// A temporary path beside `path` with the same extension (some writers need it).
-pub fn temp_beside(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
-    let ext = path
-        .extension()
-        .map_or_else(String::new, |e| format!(".{}", e.to_string_lossy()));
-    path.with_file_name(format!(".{name}.{}.partial{ext}", std::process::id()))
-}
-
-/// Writes `bytes` to `path` through a temporary file and a rename.
+/// Writes `bytes` to `path` through a temporary file, fsync and a rename.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = temp_beside(path);
-    std::fs::write(&tmp, bytes).with_context(|| {
-        format!(
-            "cannot write {} (does its directory exist?)",
-            path.display()
-        )
-    })?;
-    std::fs::rename(&tmp, path)
-        .with_context(|| format!("cannot move the result into {}", path.display()))
+    Ok(atomic::write_file(path, bytes)?)
 }
 
-/// Runs `write` on a temporary path beside `path`, then renames it into place.
+/// Runs `write` on a temporary path beside `path`, then flushes and renames it into
+/// place; the temporary is removed on any error.
 pub fn write_atomic_with(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    let tmp = temp_beside(path);
-    match write(&tmp) {
-        Ok(()) => std::fs::rename(&tmp, path)
-            .with_context(|| format!("cannot move the result into {}", path.display())),
-        Err(e) => {
-            let _ = std::fs::remove_file(&tmp);
-            Err(e)
-        }
+    Ok(atomic::write_file_with(path, |p| {
+        write(p)
+            .map_err(|e| -> Box<dyn std::error::Error + Send + Sync> { format!("{e:#}").into() })
+    })?)
+}
+
+/// Creates the output folder `dir` (or accepts it when it exists as a folder), with a
+/// message that names the flag and the fix.
+pub fn output_dir(dir: &Path, flag: &str) -> Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        anyhow::bail!(
+            "{flag} {}: it exists and is not a folder\n  fix: give a folder path for {flag} (the file is left as it is)",
+            dir.display()
+        );
     }
+    std::fs::create_dir_all(dir).map_err(|e| {
+        anyhow::anyhow!(
+            "{flag} {}: cannot create the folder: {e}\n  fix: check that its parent is writable",
+            dir.display()
+        )
+    })
 }

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::Args;
 use comfy_table::{presets::UTF8_BORDERS_ONLY, Table};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -35,6 +35,9 @@ fn opt(v: Option<f64>, digits: usize) -> String {
 /// Runs the scenario and prints the metrics tables.
 pub fn run(args: &RunArgs) -> Result<ExitCode> {
     let sc = longreach_arm::scenario::load(&args.scenario).map_err(|e| anyhow::anyhow!("{e}"))?;
+    for w in &sc.warnings {
+        eprintln!("warning: {w}");
+    }
     let arm = &sc.arm;
     let steps = (sc.sim.duration_s / arm.dt_s()).round() as u64;
     // A progress bar when the run is expected to take more than a second (~5 us/step
@@ -51,7 +54,7 @@ pub fn run(args: &RunArgs) -> Result<ExitCode> {
         ProgressBar::hidden()
     };
     if let (Some(dir), Some(_)) = (&args.out, &args.rerun.rerun) {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        crate::output::output_dir(dir, "--out")?;
     }
     let rec = args.rerun.recorder(
         &args.scenario.display().to_string(),
@@ -74,8 +77,8 @@ pub fn run(args: &RunArgs) -> Result<ExitCode> {
     // on an early return waits for it too).
     viewer.finish();
     let closing = rec.finish_in_background();
-    let (trace, metrics) =
-        result.with_context(|| format!("running {}", args.scenario.display()))?;
+    let (trace, metrics) = result
+        .map_err(|e| crate::Numerical(format!("running {}: {e}", args.scenario.display())))?;
 
     let mut jt = Table::new();
     jt.load_preset(UTF8_BORDERS_ONLY).set_header(vec![
@@ -148,9 +151,18 @@ pub fn run(args: &RunArgs) -> Result<ExitCode> {
         }
     }
 
-    let json = serde_json::to_string_pretty(&metrics)?;
+    #[derive(serde::Serialize)]
+    struct Out<'a> {
+        #[serde(flatten)]
+        metrics: &'a longreach_arm::run::RunMetrics,
+        warnings: &'a [String],
+    }
+    let json = serde_json::to_string_pretty(&Out {
+        metrics: &metrics,
+        warnings: &sc.warnings,
+    })?;
     if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        crate::output::output_dir(dir, "--out")?;
         let csv_path = dir.join("timeseries.csv");
         write_atomic_with(&csv_path, |tmp| {
             let mut w = csv::Writer::from_path(tmp)?;

@@ -4,9 +4,11 @@
 
 mod arm_cli;
 mod arm_scenarios;
+mod bad_inputs;
 mod batch;
 mod batch_arm;
 mod bode_cli;
 mod ident_cli;
+mod parser_fuzz;
 mod rerun_cli;
 mod rig_frequency_response;

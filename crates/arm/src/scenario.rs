@@ -264,6 +264,9 @@ pub struct ArmScenario {
     /// The flexible links (`[[flex]]`), as given to [`DrivenArm::with_flexible_links`]:
     /// a rebuilt arm bends as the scenario's does.
     pub flex_links: Vec<crate::FlexLinkSpec>,
+    /// Warnings for the user (printed once by the CLI and recorded in its JSON): what
+    /// the URDF loader dropped, what `<dynamics friction>` became, a coarse time step.
+    pub warnings: Vec<String>,
 }
 
 /// Merges `defaults` into `t` (keys absent from `t`; nested tables recursively).
@@ -335,11 +338,12 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
     let ferr = |field: &str, msg: String, fix: &str| field_error(text, file, field, msg, fix);
     let urdf_path = base.join(&doc.arm.urdf);
     let mut spec = load_urdf(&urdf_path).map_err(|e| {
-        ferr(
-            "arm.urdf",
-            e.to_string(),
-            "give the URDF path relative to the scenario file",
-        )
+        let fix = if matches!(e, crate::UrdfError::Io { .. }) {
+            "give the URDF path relative to the scenario file"
+        } else {
+            "correct the URDF where the message points (docs/arm.md says what the loader accepts)"
+        };
+        ferr("arm.urdf", e.to_string(), fix)
     })?;
     if let Some(tip) = &doc.arm.tip_frame {
         spec.set_tip_frame(tip)
@@ -370,8 +374,7 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
             ei_n_m2: 1.0,
             damping_ratio: 0.0,
         };
-        if a
-            .apply_to_link(&mut probe)
+        if a.apply_to_link(&mut probe)
             .map_err(|err| ferr(&field, err.to_string(), "give values within the bounds"))?
         {
             return Err(ferr(
@@ -451,8 +454,30 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
             "give a positive duration in s",
         ));
     }
+    if let Err(steps) = longreach_scenario::limits::check_steps(s.duration_s, s.dt_s) {
+        return Err(ferr(
+            "sim.duration_s",
+            format!(
+                "duration_s = {} s at dt_s = {} s is {steps:.3e} steps, past the limit of {:.0e} steps per run",
+                s.duration_s,
+                s.dt_s,
+                longreach_scenario::limits::MAX_STEPS_PER_RUN
+            ),
+            "shorten duration_s (or lengthen dt_s), or split the run into several scenarios",
+        ));
+    }
     if s.output_every == 0 {
         return Err(ferr("sim.output_every", "0".into(), "give 1 or more"));
+    }
+    if !(s.residual_window_s.is_finite() && s.residual_window_s > 0.0) {
+        return Err(ferr(
+            "sim.residual_window_s",
+            format!(
+                "residual_window_s = {} s is not a window of the run",
+                s.residual_window_s
+            ),
+            "give a positive window in s, e.g. 2.0 for the last 2 s",
+        ));
     }
     let initial = doc
         .arm
@@ -697,6 +722,32 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
         &mut joint_effects,
         &ferr,
     )?;
+    // What the URDF loader dropped or changed, and what its `<dynamics friction>`
+    // becomes (the joint_friction effect, unless the scenario gives that joint its own).
+    let mut warnings: Vec<String> = spec
+        .warnings
+        .iter()
+        .map(|w| format!("{}: {w}", urdf_path.display()))
+        .collect();
+    for (j, joint) in spec.joints.iter().enumerate() {
+        let given = joint_effects.iter().any(|(k, a)| {
+            *k == j
+                && longreach_drive::effects::same(
+                    a.effect,
+                    &longreach_drive::effects::JointFriction,
+                )
+        });
+        if joint.friction_n_m > 0.0 && !given {
+            warnings.push(format!(
+                "{}: joint {}: <dynamics friction=\"{}\"> becomes the joint_friction effect (dry friction {} N*m at that joint)",
+                urdf_path.display(),
+                joint.name,
+                joint.friction_n_m,
+                joint.friction_n_m
+            ));
+        }
+    }
+    warnings.extend(time_step_warnings(file, &spec, &pairs, &initial, s.dt_s));
     let arm = DrivenArm::with_joint_effects(
         spec,
         pairs,
@@ -719,6 +770,7 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
         urdf_path,
         joint_effects,
         flex_links: flex,
+        warnings,
     })
 }
 
@@ -999,6 +1051,67 @@ fn parse_flex(
     Ok(out)
 }
 
+/// Relative frequency error of a mode above which `run` warns about the time step:
+/// an arm's metrics are settling times and overshoots, for which 1% is the resolution.
+pub const ARM_MODE_ERROR_WARN: f64 = 1e-2;
+
+/// The arm's fastest modes against the time step: each pair's joint on its ropes (the
+/// head springs of both ropes, the joint's effective inertia `1 / (M^-1)_jj` at the
+/// initial pose) and its servo motor on them; a warning, with the step that resolves
+/// it, for each mode the trapezoidal rule moves by more than [`ARM_MODE_ERROR_WARN`].
+/// (Relay pulleys' own modes are not resolved by design: they carry no metric.)
+fn time_step_warnings(
+    file: &str,
+    spec: &crate::ArmSpec,
+    pairs: &[PairSpec],
+    initial: &[f64],
+    dt_s: f64,
+) -> Vec<String> {
+    let minv = crate::dynamics::mass_matrix(spec, initial)
+        .ok()
+        .and_then(|m| m.try_inverse());
+    let mut worst: Option<(f64, String)> = None;
+    for p in pairs {
+        let k = 2.0 * f64::from(p.ropes_in_parallel) * p.law.k1_n / p.length_m;
+        let joint = &spec.joints[p.joint].name;
+        let mut modes = Vec::new();
+        if let Some(minv) = &minv {
+            let inv_inertia = minv[(p.joint, p.joint)];
+            if inv_inertia > 0.0 {
+                modes.push((
+                    (k * p.joint_radius_m.powi(2) * inv_inertia).sqrt(),
+                    format!("joint {joint} on its ropes"),
+                ));
+            }
+        }
+        if matches!(p.motor.mode, MotorMode::Servo { .. }) && p.motor.inertia_kg_m2 > 0.0 {
+            modes.push((
+                (k * p.motor_radius_m.powi(2) / p.motor.inertia_kg_m2).sqrt(),
+                format!("the motor of joint {joint} on its ropes"),
+            ));
+        }
+        for (omega, what) in modes {
+            if omega.is_finite() && worst.as_ref().is_none_or(|w| omega > w.0) {
+                worst = Some((omega, what));
+            }
+        }
+    }
+    let Some((omega, what)) = worst else {
+        return Vec::new();
+    };
+    let error = longreach_scenario::bode::trapezoid_frequency_error(omega, dt_s);
+    if error <= ARM_MODE_ERROR_WARN {
+        return Vec::new();
+    }
+    let good_dt = (12.0 * ARM_MODE_ERROR_WARN).sqrt() / omega;
+    vec![format!(
+        "{file}: sim.dt_s = {dt_s} s resolves the fastest mode ({what}, {:.1} Hz) to {:.1}% in frequency; sim.dt_s <= {good_dt:.3e} s resolves it to {:.0}%",
+        omega / std::f64::consts::TAU,
+        100.0 * error,
+        100.0 * ARM_MODE_ERROR_WARN
+    )]
+}
+
 fn parse_command(
     c: &CommandSection,
     field: &str,
@@ -1025,15 +1138,31 @@ fn parse_command(
             ))
         }
     };
+    // A time the command starts at: finite and >= 0 (a NaN would never fire).
+    let time = |v: Option<f64>, k: &str| {
+        let v = v.unwrap_or(0.0);
+        if v.is_finite() && v >= 0.0 {
+            Ok(v)
+        } else {
+            Err(ferr(
+                &format!("{field}.{k}"),
+                format!("{k} = {v} is not a time"),
+                "give a finite time >= 0 in s, within sim.duration_s",
+            ))
+        }
+    };
     Ok(match c.kind.as_str() {
         "hold" => Command::Hold,
         "step" => Command::Step {
             to_rad: need(c.to_rad, "to_rad")?,
-            at_s: c.at_s.or(c.start_s).unwrap_or(0.0),
+            at_s: time(
+                c.at_s.or(c.start_s),
+                if c.at_s.is_some() { "at_s" } else { "start_s" },
+            )?,
         },
         "trapezoid" => Command::Trapezoid {
             to_rad: need(c.to_rad, "to_rad")?,
-            start_s: c.start_s.unwrap_or(0.0),
+            start_s: time(c.start_s, "start_s")?,
             max_velocity_rad_s: positive(
                 need(c.max_velocity_rad_s, "max_velocity_rad_s")?,
                 "max_velocity_rad_s",
@@ -1046,7 +1175,7 @@ fn parse_command(
         "sine" => Command::Sine {
             amplitude_rad: need(c.amplitude_rad, "amplitude_rad")?,
             frequency_hz: positive(need(c.frequency_hz, "frequency_hz")?, "frequency_hz")?,
-            start_s: c.start_s.unwrap_or(0.0),
+            start_s: time(c.start_s, "start_s")?,
         },
         "csv" => {
             let file = c.file.as_ref().ok_or_else(|| {
@@ -1085,17 +1214,35 @@ fn read_series(path: &Path, column: &str) -> Result<longreach_drive::InputSignal
         .position(|h| h == column)
         .ok_or_else(|| format!("no column '{column}'"))?;
     let (mut t, mut a) = (Vec::new(), Vec::new());
-    for (row, rec) in rdr.records().enumerate() {
-        let rec = rec.map_err(|e| e.to_string())?;
+    for rec in rdr.records() {
+        let rec = rec.map_err(|e| {
+            let line = e
+                .position()
+                .map_or(String::new(), |p| format!(":{}", p.line()));
+            format!("{}{line}: {e}", path.display())
+        })?;
+        let line = rec.position().map_or(0, |p| p.line());
         let parse = |i: usize| -> Result<f64, String> {
-            rec.get(i)
-                .unwrap_or("")
-                .trim()
-                .parse::<f64>()
-                .map_err(|e| format!("{}: data row {}: {e}", path.display(), row + 1))
+            let cell = rec.get(i).unwrap_or("").trim();
+            let v = cell.parse::<f64>().map_err(|_| {
+                format!(
+                    "{}:{line}: column '{}': \"{cell}\" is not a number",
+                    path.display(),
+                    &headers[i]
+                )
+            })?;
+            if v.is_finite() {
+                Ok(v)
+            } else {
+                Err(format!(
+                    "{}:{line}: column '{}': {v} is not a finite number",
+                    path.display(),
+                    &headers[i]
+                ))
+            }
         };
         t.push(parse(ti)?);
         a.push(parse(ai)?);
     }
-    longreach_drive::InputSignal::series(t, a).map_err(|e| e.to_string())
+    longreach_drive::InputSignal::series(t, a).map_err(|e| format!("{}: {e}", path.display()))
 }

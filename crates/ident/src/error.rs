@@ -57,6 +57,19 @@ pub enum IdentError {
         /// Starts tried.
         starts: usize,
     },
+    /// A run's measured channel does not vary over its analysed samples: an error
+    /// cannot be normalised by it (NRMSE, intervals), so no result would be a number.
+    #[error("{dir}: run {run}: the measured {channel} does not vary over its {samples} analysed samples, so the model's error cannot be normalised (NRMSE and intervals would not be numbers); fix: check that the run file holds the measurement (docs/measurements.md), or leave out a run without motion")]
+    NoVariation {
+        /// The dataset folder.
+        dir: String,
+        /// The run's name.
+        run: String,
+        /// The compared channel (`output_angle_rad`, `tension_n`).
+        channel: &'static str,
+        /// Analysed samples.
+        samples: usize,
+    },
     /// A sweep-only computation (the analytic frequency response) was asked of another
     /// kind of dataset.
     #[error("not a sweep")]

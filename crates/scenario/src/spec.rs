@@ -17,20 +17,48 @@ pub fn from_toml<T: DeserializeOwned>(text: &str, file: &str) -> Result<T, Scena
 pub fn toml_error(text: &str, file: &str, e: &toml::de::Error) -> ScenarioError {
     let message = e.message().trim().to_string();
     let line = e.span().map(|s| line_at(text, s.start));
-    let field = quoted(&message)
+    // Only a missing or unknown field's message quotes the field; a type error quotes
+    // the value, so its field is the key of the line.
+    let names_field = message.starts_with("missing field")
+        || message.starts_with("unknown field")
+        || message.starts_with("duplicate key");
+    let field = names_field
+        .then(|| quoted(&message))
+        .flatten()
         .or_else(|| {
             // A type error points at the value: the key is what precedes `=` on its line.
             let line = line?;
             let src = text.lines().nth(line - 1)?;
-            let key = src.split('=').next()?.trim();
-            (!key.is_empty() && !key.starts_with('[')).then(|| key.to_string())
+            let key = src.split('=').next()?.trim().trim_matches('"');
+            if key.is_empty() || key.starts_with('[') {
+                return None;
+            }
+            // Prefixed with the table the line sits in (`[sweep]` -> `sweep.settle_s`).
+            let table = text
+                .lines()
+                .take(line - 1)
+                .filter_map(|l| {
+                    let l = l.trim();
+                    let inner = l.strip_prefix("[[").and_then(|r| r.split("]]").next());
+                    let inner =
+                        inner.or_else(|| l.strip_prefix('[').and_then(|r| r.split(']').next()));
+                    inner.map(|t| t.trim().to_string())
+                })
+                .last();
+            Some(match table {
+                Some(t) if !t.is_empty() => format!("{t}.{key}"),
+                _ => key.to_string(),
+            })
         })
         .unwrap_or_default();
     let fix = if message.starts_with("missing field") {
         format!("add `{field} = <value>` (SI units, as the name says) to this table; see scenarios/README.md for every field")
     } else if message.starts_with("unknown field") {
         "remove the key or correct its spelling to one of the expected fields listed".to_string()
-    } else if message.starts_with("invalid type") || message.contains("expected") {
+    } else if message.starts_with("invalid type")
+        || message.starts_with("invalid value")
+        || message.starts_with("invalid length")
+    {
         "give a value of the expected type (numbers without quotes, names in quotes, lists in [ ])"
             .to_string()
     } else {

@@ -338,26 +338,8 @@ pub(super) fn dft(x: &[f64], dt_s: f64, f: f64) -> Complex64 {
     metrics::single_bin_dft(x, dt_s, f).unwrap_or_default()
 }
 
-/// Peak of a gain curve `(f, dB)`: the largest point refined by a parabola in
-/// `(ln f, dB)` through its neighbours. `None` at an end of the range.
+/// Peak of a gain curve `(f, dB)`, its points in any order (see
+/// [`longreach_scenario::bode::peak_of_curve`]).
 fn peak(pts: &[(f64, f64)]) -> Option<(f64, f64)> {
-    let (k, _) = pts
-        .iter()
-        .enumerate()
-        .max_by(|a, b| a.1 .1.total_cmp(&b.1 .1))?;
-    if k == 0 || k + 1 >= pts.len() {
-        return None;
-    }
-    let (x0, x1, x2) = (pts[k - 1].0.ln(), pts[k].0.ln(), pts[k + 1].0.ln());
-    let (y0, y1, y2) = (pts[k - 1].1, pts[k].1, pts[k + 1].1);
-    let d1 = (y1 - y0) / (x1 - x0);
-    let d2 = (y2 - y1) / (x2 - x1);
-    let a = (d2 - d1) / (x2 - x0);
-    if a >= 0.0 {
-        return Some((pts[k].0, y1));
-    }
-    let b = d1 - a * (x0 + x1);
-    let xm = (-b / (2.0 * a)).clamp(x0, x2);
-    let ym = y1 + (xm - x1) * (b + a * (xm + x1));
-    Some((xm.exp(), ym))
+    longreach_scenario::bode::peak_of_curve(pts)
 }

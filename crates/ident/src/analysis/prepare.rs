@@ -131,6 +131,27 @@ impl<'a> Prepared<'a> {
                 })
                 .collect(),
         };
+        for run in &runs {
+            let n = run.idx.len();
+            let first = run.idx.first().map(|&i| run.measured[i]);
+            // Exactly constant (bit for bit): any variation at all gives a number.
+            let varies = first.is_some_and(|f| {
+                run.idx
+                    .iter()
+                    .any(|&i| run.measured[i].to_bits() != f.to_bits())
+            });
+            if !varies {
+                return Err(IdentError::NoVariation {
+                    dir: ds.dir.display().to_string(),
+                    run: run.name.clone(),
+                    channel: match &ds.kind {
+                        DatasetKind::SineSweep(_) => "output_angle_rad",
+                        _ => "tension_n",
+                    },
+                    samples: n,
+                });
+            }
+        }
         Ok(Self {
             ds,
             kind: data_kind(ds),

@@ -260,6 +260,9 @@ pub enum DatasetError {
         #[source]
         source: Box<DatasetError>,
     },
+    /// The output folder could not be written, or is not ours to replace.
+    #[error(transparent)]
+    Write(#[from] longreach_scenario::atomic::WriteError),
 }
 
 fn fmt_line(line: Option<usize>) -> String {

@@ -16,8 +16,11 @@
 //!
 //! Writing ([`SweepDataset::write`], [`RelaxationDataset::write`],
 //! [`CyclicDataset::write`]) is atomic: all files go into a temporary folder next to the
-//! target, are read back and checked with the same reader, and only then is the folder
-//! renamed into place.
+//! target (`longreach_scenario::atomic::replace_dir`: every file flushed to disk), are
+//! read back and checked with the same reader, and only then is the folder renamed into
+//! place. An existing target is replaced only when it is empty or a dataset (its
+//! `dataset.toml` declares our format): a folder of the user's, or a file, is refused
+//! and left untouched.
 //!
 //! The code is split by job: `types.rs` holds what a loaded dataset is ([`Dataset`],
 //! [`SweepRun`] and its frequency [`Segment`]s, ...), `error.rs` the [`DatasetError`]
@@ -36,6 +39,7 @@ pub use types::{
     Dataset, DatasetKind, Frf, RelaxationDataset, RelaxationRun, RelaxationSpecimen, RigSpec,
     Segment, SweepDataset, SweepRun, Tensioner, WindowAlignment,
 };
+pub use write::check_target;
 
 /// The only format string this reader understands (`format = ...` in `dataset.toml`).
 pub const FORMAT: &str = "longreach-measurement/1";

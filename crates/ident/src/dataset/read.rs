@@ -362,14 +362,19 @@ fn load_sweep(doc: &TomlDoc, dir: &Path) -> Result<SweepDataset, DatasetError> {
         };
         let mut table = read_csv(&path, &SWEEP_COLUMNS, &SWEEP_TENSION_COLUMNS)?;
         check_time(&path, &table.required[0], &table.lines, true)?;
+        // Every test frequency below the Nyquist rate of the samples (fixed rate,
+        // checked above): a faster one cannot be measured, so no result would hold.
+        let nyquist_hz = 0.5 / mean_interval(&table.required[0]);
         for (i, &f) in table.required[1].iter().enumerate() {
-            if f <= 0.0 {
+            if f <= 0.0 || f >= nyquist_hz {
                 return Err(DatasetError::BadCell {
                     file: path,
                     line: table.lines[i],
                     column: "frequency_hz".into(),
                     value: f,
-                    requirement: "must be > 0".into(),
+                    requirement: format!(
+                        "must be > 0 and below the Nyquist rate {nyquist_hz} Hz of the samples"
+                    ),
                 });
             }
         }

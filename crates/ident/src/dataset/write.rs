@@ -125,7 +125,9 @@ impl<'a> Writer<'a> {
     }
 
     /// Writes everything to a temporary folder next to `dir`, reads it back with
-    /// [`Dataset::load`], then renames it to `dir` (replacing an existing `dir`).
+    /// [`Dataset::load`], then moves it to `dir`. An existing `dir` is replaced only
+    /// when it is empty or a dataset (it has a `dataset.toml` in our format); anything
+    /// else (a folder of the user's, a file) is refused and left untouched.
     fn commit(self, toml_text: &str) -> Result<(), DatasetError> {
         let dir = self.dir;
         let io = |path: &Path, action: &'static str| {
@@ -136,75 +138,58 @@ impl<'a> Writer<'a> {
                 source,
             }
         };
-        let parent = match dir.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        let base = dir
-            .file_name()
-            .map(|s| s.to_string_lossy().into_owned())
-            .ok_or_else(|| self.invalid("the target has no folder name".into()))?;
-        fs::create_dir_all(&parent).map_err(io(&parent, "create folder"))?;
-        let tmp = tempfile::Builder::new()
-            .prefix(&format!(".{base}.tmp"))
-            .tempdir_in(&parent)
-            .map_err(io(&parent, "create temporary folder"))?;
-        fs::write(tmp.path().join(DATASET_TOML), toml_text)
-            .map_err(io(&tmp.path().join(DATASET_TOML), "write"))?;
-        for (name, text) in &self.texts {
-            let path = tmp.path().join(name);
-            fs::write(&path, text).map_err(io(&path, "write"))?;
-        }
-        for (name, columns) in &self.files {
-            let path = tmp.path().join(name);
-            let mut w = csv::Writer::from_path(&path).map_err(|e| csv_error(&path, &e))?;
-            w.write_record(columns.iter().map(|c| c.0))
-                .map_err(|e| csv_error(&path, &e))?;
-            let n = columns[0].1.len();
-            let mut row: Vec<String> = Vec::with_capacity(columns.len());
-            for i in 0..n {
-                row.clear();
-                row.extend(columns.iter().map(|c| c.1[i].to_string()));
-                w.write_record(&row).map_err(|e| csv_error(&path, &e))?;
+        longreach_scenario::atomic::replace_dir(dir, is_dataset_dir, NOT_OURS_FIX, |tmp| {
+            fs::write(tmp.join(DATASET_TOML), toml_text)
+                .map_err(io(&tmp.join(DATASET_TOML), "write"))?;
+            for (name, text) in &self.texts {
+                let path = tmp.join(name);
+                fs::write(&path, text).map_err(io(&path, "write"))?;
             }
-            w.flush().map_err(io(&path, "write"))?;
-        }
-        Dataset::load(tmp.path()).map_err(|e| DatasetError::WriteCheck {
-            dir: dir.to_path_buf(),
-            source: Box::new(e),
-        })?;
-        // Swap into place; an existing target is moved aside first and removed afterwards.
-        let tmp_path = tmp.keep();
-        let old = if dir.exists() {
-            let aside = parent.join(format!(".{base}.old.{}", std::process::id()));
-            if let Err(e) = fs::rename(dir, &aside) {
-                let _ = fs::remove_dir_all(&tmp_path);
-                return Err(DatasetError::Io {
-                    path: dir.to_path_buf(),
-                    action: "move aside",
-                    source: e,
-                });
+            for (name, columns) in &self.files {
+                let path = tmp.join(name);
+                let mut w = csv::Writer::from_path(&path).map_err(|e| csv_error(&path, &e))?;
+                w.write_record(columns.iter().map(|c| c.0))
+                    .map_err(|e| csv_error(&path, &e))?;
+                let n = columns[0].1.len();
+                let mut row: Vec<String> = Vec::with_capacity(columns.len());
+                for i in 0..n {
+                    row.clear();
+                    row.extend(columns.iter().map(|c| c.1[i].to_string()));
+                    w.write_record(&row).map_err(|e| csv_error(&path, &e))?;
+                }
+                w.flush().map_err(io(&path, "write"))?;
             }
-            Some(aside)
-        } else {
-            None
-        };
-        if let Err(e) = fs::rename(&tmp_path, dir) {
-            if let Some(aside) = &old {
-                let _ = fs::rename(aside, dir);
-            }
-            let _ = fs::remove_dir_all(&tmp_path);
-            return Err(DatasetError::Io {
-                path: dir.to_path_buf(),
-                action: "rename",
-                source: e,
-            });
-        }
-        if let Some(aside) = old {
-            fs::remove_dir_all(&aside).map_err(io(&aside, "remove old dataset"))?;
-        }
-        Ok(())
+            Dataset::load(tmp).map_err(|e| DatasetError::WriteCheck {
+                dir: dir.to_path_buf(),
+                source: Box::new(e),
+            })?;
+            Ok(())
+        })
     }
+}
+
+const NOT_OURS_FIX: &str = "choose a new folder for --out (or an existing dataset to replace); longreach never deletes a folder it did not write";
+
+/// Checks that `dir` may receive a dataset (it is missing, empty, or a dataset) before
+/// anything is computed for it; the writers check again when they write.
+pub fn check_target(dir: &Path) -> Result<(), DatasetError> {
+    longreach_scenario::atomic::check_dir_target(dir, is_dataset_dir, NOT_OURS_FIX)?;
+    Ok(())
+}
+
+/// True when `dir` holds a `dataset.toml` that declares our format (a dataset we may
+/// replace).
+fn is_dataset_dir(dir: &Path) -> bool {
+    fs::read_to_string(dir.join(DATASET_TOML)).is_ok_and(|text| {
+        toml::from_str::<toml::Table>(&text)
+            .ok()
+            .and_then(|t| {
+                t.get("format")
+                    .and_then(|f| f.as_str())
+                    .map(|f| f == FORMAT)
+            })
+            .unwrap_or(false)
+    })
 }
 
 fn toml_text<T: Serialize>(dir: &Path, value: &T) -> Result<String, DatasetError> {

@@ -582,6 +582,18 @@ impl Batch {
                     "give samples >= 1, or remove the key".into(),
                 ));
             }
+            if n > crate::limits::MAX_SCENARIOS {
+                return Err(err(
+                    text,
+                    file,
+                    "samples",
+                    format!(
+                        "samples = {n} is past the limit of {} scenarios per batch",
+                        crate::limits::MAX_SCENARIOS
+                    ),
+                    "draw fewer samples, or split the study into several batch files".into(),
+                ));
+            }
             columns.push(AxisColumn {
                 name: "sample".into(),
                 is_path: false,
@@ -603,6 +615,18 @@ impl Batch {
                 message: "the product of the axes overflows".into(),
                 fix: "use fewer or shorter axes, or zip some of them".into(),
             })?;
+        if total > crate::limits::MAX_SCENARIOS {
+            return Err(ScenarioError {
+                file: file.to_string(),
+                line: None,
+                field: "axis".into(),
+                message: format!(
+                    "the axes expand into {total} scenarios, past the limit of {} per batch",
+                    crate::limits::MAX_SCENARIOS
+                ),
+                fix: "use fewer or shorter axes, zip some of them, or split the study into several batch files".into(),
+            });
+        }
         let name = spec.name.clone().unwrap_or_else(|| stem.to_string());
         if name.is_empty() || name.contains(['/', '\\']) || name.starts_with('.') {
             return Err(err(

@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use serde::{Deserialize, Serialize};
 
-use super::row::Row;
+use super::row::{Cell, Row, Status};
 use super::shard::Shard;
 
 /// Journal file name inside an output folder.
@@ -72,6 +72,16 @@ pub enum JournalError {
         /// The journal.
         path: PathBuf,
     },
+    /// A row of the journal cannot be a row of this batch (edited or damaged file).
+    #[error("{path}:{line}: {what}; the journal was edited or damaged: remove the folder (or choose another --out) and run the batch again")]
+    BadRow {
+        /// The journal.
+        path: PathBuf,
+        /// 1-based line of the row.
+        line: usize,
+        /// What is wrong with it.
+        what: String,
+    },
     /// Shard journals do not join into the whole batch.
     #[error("cannot merge: {0}")]
     Merge(String),
@@ -99,26 +109,86 @@ pub fn read(path: &Path) -> Result<(Header, Vec<Row>, u64), JournalError> {
     let mut offset = 0usize;
     let mut header: Option<Header> = None;
     let mut rows: BTreeMap<usize, Row> = BTreeMap::new();
+    let mut line_no = 0usize;
     while let Some(len) = bytes[offset..].iter().position(|&b| b == b'\n') {
         let line = &bytes[offset..offset + len];
-        if header.is_none() {
-            header = Some(
-                serde_json::from_slice(line)
-                    .map_err(|_| JournalError::BadHeader { path: path.into() })?,
-            );
-        } else {
+        line_no += 1;
+        if let Some(h) = &header {
             match serde_json::from_slice::<Row>(line) {
                 Ok(row) => {
+                    if let Err(what) = check_row(h, &row) {
+                        return Err(JournalError::BadRow {
+                            path: path.into(),
+                            line: line_no,
+                            what,
+                        });
+                    }
                     rows.entry(row.index).or_insert(row);
                 }
                 // A damaged line ends the valid prefix; the rest is redone.
                 Err(_) => break,
             }
+        } else {
+            let h: Header = serde_json::from_slice(line)
+                .map_err(|_| JournalError::BadHeader { path: path.into() })?;
+            if h.total == 0 || h.total > crate::limits::MAX_SCENARIOS {
+                return Err(JournalError::BadRow {
+                    path: path.into(),
+                    line: 1,
+                    what: format!(
+                        "field `total` = {} is not a batch size (1 to {})",
+                        h.total,
+                        crate::limits::MAX_SCENARIOS
+                    ),
+                });
+            }
+            header = Some(h);
         }
         offset += len + 1;
     }
     let header = header.ok_or(JournalError::BadHeader { path: path.into() })?;
     Ok((header, rows.into_values().collect(), offset as u64))
+}
+
+/// Whether `row` can be a row of `header`'s batch: its index inside the batch and the
+/// journal's shard, one value per axis column, and every metric of an `ok` row a finite
+/// number. `resume` and `merge` read journals through this one check.
+fn check_row(header: &Header, row: &Row) -> Result<(), String> {
+    if row.index >= header.total {
+        return Err(format!(
+            "row {} is past the batch's {} scenarios",
+            row.index, header.total
+        ));
+    }
+    if let Some(s) = header.shard {
+        if !s.contains(row.index) {
+            return Err(format!(
+                "row {} is not in this journal's shard {s}",
+                row.index
+            ));
+        }
+    }
+    if row.axes.len() != header.axes.len() {
+        return Err(format!(
+            "row {} has {} axis values for {} axis columns",
+            row.index,
+            row.axes.len(),
+            header.axes.len()
+        ));
+    }
+    if row.status == Status::Ok {
+        for (name, cell) in &row.metrics {
+            if let Some(Cell::Float(v)) = cell {
+                if !v.is_finite() {
+                    return Err(format!(
+                        "row {}: metric `{name}` = {v} is not a finite number",
+                        row.index
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 impl Journal {

@@ -55,12 +55,10 @@ pub fn run_one(batch: &Batch, index: usize, options: &RunOptions) -> Row {
     if let Some(dir) = &options.outputs_dir {
         let mut write = |name: String, bytes: &[u8]| {
             let path = dir.join(&name);
-            let tmp = dir.join(format!(".{name}.partial"));
-            let result = std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, &path));
-            if let Err(e) = result {
+            if let Err(e) = crate::atomic::write_file(&path, bytes) {
                 if row.status == Status::Ok {
                     row.status = Status::Failed;
-                    row.error = format!("cannot write {}: {e}", path.display());
+                    row.error = e.to_string().replace('\n', " ");
                 }
             }
         };

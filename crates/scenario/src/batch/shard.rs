@@ -17,7 +17,7 @@ impl Shard {
     /// Parses `K/N` with `1 <= K <= N`.
     pub fn parse(s: &str) -> Result<Self, String> {
         let bad = || {
-            format!("`--shard {s}`: expected K/N with 1 <= K <= N (e.g. 2/8: the second of eight shards)")
+            format!("`--shard {s}`: expected K/N with 1 <= K <= N\n  fix: give e.g. --shard 2/8 (the second of eight shards)")
         };
         let (k, n) = s.split_once('/').ok_or_else(bad)?;
         let k: usize = k.trim().parse().map_err(|_| bad())?;
