@@ -242,7 +242,7 @@ fn starting_values(
             let sim_cost = |x: &Vec<f64>| -> f64 {
                 let m = model.with_values(x, prep.runs.len());
                 prep.simulate(&m)
-                    .map(|s| prep.residuals_of(&s).iter().map(|v| v * v).sum::<f64>())
+                    .map(|s| prep.ssr(&s))
                     .unwrap_or(f64::INFINITY)
             };
             for &g in &hidden {
@@ -309,7 +309,7 @@ fn starting_values(
             .map(|x| {
                 let m = model.with_values(x, prep.runs.len());
                 prep.simulate(&m)
-                    .map(|s| prep.residuals_of(&s).iter().map(|v| v * v).sum::<f64>())
+                    .map(|s| prep.ssr(&s))
                     .unwrap_or(f64::INFINITY)
             })
             .collect();
@@ -371,7 +371,7 @@ pub fn screen_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, IdentE
         .map(|x| {
             let m = model.with_values(x, prep.runs.len());
             let sims = prep.simulate(&m)?;
-            let ssr = prep.residuals_of(&sims).iter().map(|e| e * e).sum();
+            let ssr = prep.ssr(&sims);
             Ok((m, sims, ssr))
         })
         .collect();
@@ -438,10 +438,8 @@ pub fn fit_model_from(
     if starts.len() == 1 && starts[0] != own {
         // a searched start that simulates farther from the data than the model's own
         // values gives way to them
-        let ssr =
-            |sims: &[Vec<f64>]| -> f64 { prep.residuals_of(sims).iter().map(|e| e * e).sum() };
         let searched = prep.simulate(&model.with_values(&starts[0], prep.runs.len()));
-        if searched.is_ok_and(|s| ssr(&s) > ssr(&sims0)) {
+        if searched.is_ok_and(|s| prep.ssr(&s) > prep.ssr(&sims0)) {
             starts[0] = own;
         }
     }
@@ -483,7 +481,7 @@ pub fn fit_model_from(
     })?;
     let sims = prep.simulate(&fitted_model)?;
     let (nrmse, _) = prep.overall(&sims);
-    let ssr = prep.residuals_of(&sims).iter().map(|e| e * e).sum();
+    let ssr = prep.ssr(&sims);
     Ok(Fitted {
         model: fitted_model,
         fit: fit_res,

@@ -189,6 +189,11 @@ impl<'a> Prepared<'a> {
         out
     }
 
+    /// Sum of squared residuals ([`Self::residuals_of`]) of the simulated channels `sims`.
+    pub fn ssr(&self, sims: &[Vec<f64>]) -> f64 {
+        self.residuals_of(sims).iter().map(|e| e * e).sum()
+    }
+
     /// The error group of every residual of [`Self::residuals_of`], for the fits'
     /// uncertainties ([`crate::fitting::Residuals::error_groups`]): a sweep's analysed
     /// samples grouped by test frequency, over all runs (the encoder's quantisation error
