@@ -171,6 +171,10 @@ fn an_arm_run_is_recorded_with_every_entity_and_logging_changes_nothing() {
         );
     }
     assert_eq!(entity(&s, "/world/motors")["static"], true);
+    // Rigid links: drawn by their poses only, no bent centre lines or tip markers.
+    let ents = s["entities"].as_object().unwrap();
+    assert!(!ents.contains_key("/world/tip"));
+    assert!(!ents.keys().any(|k| k.ends_with("/beam")));
     // Values: the recorded joint angle equals the CSV's at the same times (the CSV
     // keeps every 10th step with 10 significant digits).
     let csv = String::from_utf8(b).unwrap();
@@ -200,6 +204,121 @@ fn an_arm_run_is_recorded_with_every_entity_and_logging_changes_nothing() {
         (last_q - last_ref).abs() < 0.01 * last_ref.abs().max(0.01),
         "{last_q} vs {last_ref}"
     );
+}
+
+/// `(time, value)` of a geometry list of the summary (`translations`, `strips`, ...).
+fn geometry<'a>(e: &'a Value, key: &str) -> Vec<(f64, &'a Value)> {
+    e[key]
+        .as_array()
+        .unwrap_or_else(|| panic!("no {key} in {e}"))
+        .iter()
+        .filter(|tv| !tv[0].is_null())
+        .map(|tv| (tv[0].as_f64().unwrap(), &tv[1]))
+        .collect()
+}
+
+fn vec3(v: &Value) -> [f64; 3] {
+    let a = v.as_array().unwrap();
+    [0, 1, 2].map(|i| a[i].as_f64().unwrap())
+}
+
+/// `p` turned by the unit quaternion `[x, y, z, w]`, then moved by `t`.
+fn transform(t: [f64; 3], q: [f64; 4], p: [f64; 3]) -> [f64; 3] {
+    let (u, w) = ([q[0], q[1], q[2]], q[3]);
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let c1 = cross(u, p);
+    let c2 = cross(u, c1);
+    [0, 1, 2].map(|i| t[i] + p[i] + 2.0 * w * c1[i] + 2.0 * c2[i])
+}
+
+fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>().sqrt()
+}
+
+#[test]
+fn a_flexible_arm_is_drawn_bent_with_its_tip_at_the_deflected_end() {
+    let dir = tempfile::tempdir().unwrap();
+    // The flexible base step, 2 s of it.
+    let scenario = dir.path().join("flex.toml");
+    let text = std::fs::read_to_string(format!("{ROOT}/scenarios/flex_dyneema2_base_step.toml"))
+        .unwrap()
+        .replace("duration_s = 10.0", "duration_s = 2.0")
+        .replace("\"../robots/", &format!("\"{ROOT}/robots/"));
+    assert!(text.contains("duration_s = 2.0") && text.contains(ROOT));
+    std::fs::write(&scenario, text).unwrap();
+    let json = dir.path().join("m.json");
+    let rrd = dir.path().join("flex.rrd");
+    ok(&longreach(&[
+        "run",
+        scenario.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+        "--rerun",
+        &format!("save:{}", rrd.display()),
+        "--rerun-hz",
+        "20",
+    ]));
+    let m: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let expected = m["tip_deflection_m"].as_f64().unwrap();
+    assert!(expected > 0.01, "the links sag: {expected} m at the tip");
+    let Some(s) = read_back(&rrd) else { return };
+    // 2 s at 20 Hz: t = 0 plus 40 frames, each with the bent links and the tip.
+    let frames = 41;
+    let deflection = scalars(entity(&s, "/series/tip/deflection_m"));
+    assert_eq!(deflection.len(), frames);
+    let (t_end, d_end) = *deflection.last().unwrap();
+    assert!((t_end - 2.0).abs() < 1e-9);
+    // The recorded deflection at the end is the run's own (tip vs straight links).
+    assert!(
+        (d_end - expected).abs() < 1e-9 * expected,
+        "{d_end} vs {expected}"
+    );
+    let tips = geometry(entity(&s, "/world/tip"), "points");
+    assert_eq!(tips.len(), frames);
+    let pts = tips.last().unwrap().1.as_array().unwrap();
+    assert_eq!(pts.len(), 2, "deflected tip, then the straight one");
+    let (tip, straight) = (vec3(&pts[0]), vec3(&pts[1]));
+    // Points are f32: 11 m to a micrometre.
+    assert!(
+        (dist(tip, straight) - expected).abs() < 5e-6,
+        "drawn tips {} m apart, deflection {expected} m",
+        dist(tip, straight)
+    );
+    // The last link's centre line ends at the deflected tip (in its link frame, posed
+    // by the link's transform); it starts at its joint.
+    let link5 = entity(&s, "/world/arm/link5");
+    let beams = geometry(entity(&s, "/world/arm/link5/beam"), "strips");
+    assert_eq!(beams.len(), frames);
+    let strip = beams.last().unwrap().1[0].as_array().unwrap();
+    assert_eq!(strip.len(), 17);
+    assert_eq!(vec3(&strip[0]), [0.0; 3]);
+    let end = vec3(strip.last().unwrap());
+    let t = vec3(&geometry(link5, "translations").last().unwrap().1[0]);
+    let q = geometry(link5, "quaternions").last().unwrap().1[0]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect::<Vec<_>>();
+    let drawn_end = transform(t, [q[0], q[1], q[2], q[3]], end);
+    assert!(
+        dist(drawn_end, tip) < 5e-6,
+        "beam ends {} m from the tip",
+        dist(drawn_end, tip)
+    );
+    // Every link bends: a centre line for each.
+    for l in 1..=5 {
+        assert_eq!(
+            entity(&s, &format!("/world/arm/link{l}/beam"))["rows"],
+            frames
+        );
+    }
 }
 
 #[test]

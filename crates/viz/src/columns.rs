@@ -8,7 +8,8 @@ use rerun::SerializedComponentColumn;
 use std::time::{Duration, Instant};
 
 use rerun::{
-    Color, LineStrip3D, LineStrips3D, Quaternion, Scalars, SeriesLines, TimeColumn, Transform3D,
+    Color, LineStrip3D, LineStrips3D, Points3D, Quaternion, Scalars, SeriesLines, TimeColumn,
+    Transform3D,
 };
 
 use crate::Sink;
@@ -52,6 +53,9 @@ pub struct TransformId(usize);
 /// Handle of a line-strip channel in [`Columns`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct StripsId(usize);
+/// Handle of a channel of coloured points in [`Columns`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PointsId(usize);
 /// Handle of a channel of strip colours (strips logged once, static) in [`Columns`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ColorsId(usize);
@@ -101,6 +105,8 @@ pub struct Columns {
     series: Vec<Series>,
     poses: Vec<(String, Vec<[f32; 3]>, Vec<[f32; 4]>)>,
     strips: Vec<Strips>,
+    /// Points: the same layout as strips of one point each.
+    points: Vec<Strips>,
     /// `(entity, colours per frame, colours)` of strips whose geometry is static.
     colors: Vec<(String, Vec<usize>, Vec<[u8; 4]>)>,
     last_send: Instant,
@@ -125,6 +131,7 @@ impl Columns {
             series: Vec::new(),
             poses: Vec::new(),
             strips: Vec::new(),
+            points: Vec::new(),
             colors: Vec::new(),
             last_send: Instant::now(),
             names_sent: false,
@@ -172,6 +179,19 @@ impl Columns {
             colors: Vec::new(),
         });
         StripsId(self.strips.len() - 1)
+    }
+
+    /// Adds a channel of coloured points of `radius_m` at `entity`.
+    pub fn points(&mut self, entity: impl Into<String>, radius_m: f64) -> PointsId {
+        self.points.push(Strips {
+            entity: entity.into(),
+            radius_m: radius_m as f32,
+            counts: Vec::new(),
+            lengths: Vec::new(),
+            points: Vec::new(),
+            colors: Vec::new(),
+        });
+        PointsId(self.points.len() - 1)
     }
 
     /// Adds a channel of the colours of the line strips at `entity`, whose geometry is
@@ -261,6 +281,21 @@ impl Columns {
         s.counts.push(n);
     }
 
+    /// The points of channel `id` in the current frame, each with its colour.
+    pub fn push_points(
+        &mut self,
+        id: PointsId,
+        points: impl IntoIterator<Item = ([f64; 3], [u8; 4])>,
+    ) {
+        let s = &mut self.points[id.0];
+        let before = s.points.len();
+        for (p, color) in points {
+            s.points.push(p.map(|v| v as f32));
+            s.colors.push(color);
+        }
+        s.counts.push(s.points.len() - before);
+    }
+
     /// The colours of the strips of channel `id` in the current frame, in their order.
     pub fn push_colors(&mut self, id: ColorsId, colors: impl IntoIterator<Item = [u8; 4]>) {
         let (_, counts, all) = &mut self.colors[id.0];
@@ -306,7 +341,7 @@ impl Columns {
             t.clear();
             q.clear();
         }
-        for s in &mut self.strips {
+        for s in self.strips.iter_mut().chain(&mut self.points) {
             s.counts.clear();
             s.lengths.clear();
             s.points.clear();
@@ -330,6 +365,15 @@ impl Columns {
                     stream.log_static(
                         s.entity.as_str(),
                         &LineStrips3D::update_fields().with_radii([s.radius_m]),
+                    ),
+                );
+            }
+            for s in &self.points {
+                rec.report(
+                    &s.entity,
+                    stream.log_static(
+                        s.entity.as_str(),
+                        &Points3D::update_fields().with_radii([s.radius_m]),
                     ),
                 );
             }
@@ -388,6 +432,21 @@ impl Columns {
             });
             let cols = LineStrips3D::update_fields()
                 .with_strips(strips)
+                .with_colors(
+                    s.colors
+                        .iter()
+                        .map(|c| Color::from_unmultiplied_rgba(c[0], c[1], c[2], c[3])),
+                )
+                .columns(s.counts.iter().copied());
+            send(
+                &s.entity,
+                s.counts.len(),
+                cols.map(Iterator::collect).map_err(err),
+            );
+        }
+        for s in &self.points {
+            let cols = Points3D::update_fields()
+                .with_positions(s.points.iter().copied())
                 .with_colors(
                     s.colors
                         .iter()

@@ -25,7 +25,7 @@ pub mod rig;
 mod rrd_file;
 mod worker;
 
-pub use columns::{ColorsId, Columns, RateGate, SeriesId, StripsId, TransformId};
+pub use columns::{ColorsId, Columns, PointsId, RateGate, SeriesId, StripsId, TransformId};
 pub use error::VizError;
 pub use recorder::{Closing, Recorder, Sink, Target, DEFAULT_HZ, SDK_VERSION};
 
