@@ -71,7 +71,8 @@ def main(path):
                 values = rb.column(column).to_pylist()
                 ent.setdefault(key, []).extend([t, v] for t, v in zip(times, values))
         if "TextDocument:text" in names:
-            ent["text"] = rb.column("TextDocument:text").to_pylist()[-1]
+            text = rb.column("TextDocument:text").to_pylist()[-1]
+            ent["text"] = text[0] if isinstance(text, list) and text else text
         if "SeriesLines:names" in names:
             for v in rb.column("SeriesLines:names").to_pylist():
                 ent["names"] = v or []

@@ -322,6 +322,127 @@ fn a_flexible_arm_is_drawn_bent_with_its_tip_at_the_deflected_end() {
 }
 
 #[test]
+fn modes_are_drawn_oscillating_at_their_frequency_and_scale() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = format!("{ROOT}/scenarios/flex_dyneema2_base_step.toml");
+    let json = dir.path().join("m.json");
+    let rrd = dir.path().join("m.rrd");
+    let out = ok(&longreach(&[
+        "modes",
+        &scenario,
+        "--top",
+        "5",
+        "--json",
+        json.to_str().unwrap(),
+        "--rerun",
+        &format!("save:{}", rrd.display()),
+    ]));
+    assert!(out.contains("wrote Rerun recording"), "{out}");
+    let j: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let Some(s) = read_back(&rrd) else { return };
+    let ents = s["entities"].as_object().unwrap();
+    // The five lowest modes, no more.
+    assert!(ents.contains_key("/modes/mode_05/series/joints_rad"));
+    assert!(!ents.contains_key("/modes/mode_06/series/joints_rad"));
+    let mut bending_checked = false;
+    for (i, md) in j["modes"].as_array().unwrap().iter().take(5).enumerate() {
+        let root = format!("/modes/mode_{:02}", i + 1);
+        let period = 1.0 / md["damped_hz"].as_f64().unwrap();
+        // Two periods of 32 frames, on the mode's own time: back to the full amplitude
+        // after one period of the damped frequency, through the pose at a quarter.
+        let tip = scalars(entity(&s, &format!("{root}/series/tip_m")));
+        assert_eq!(tip.len(), 65, "{root}");
+        let amp = tip[0].1;
+        assert!(amp > 1e-4 && amp <= 0.05 * 11.1, "{root}: tip {amp} m");
+        for (frame, share) in [(32, 1.0), (64, 2.0), (16, 0.5), (8, 0.25)] {
+            let t = tip[frame].0;
+            assert!(
+                (t - share * period).abs() < 1e-9, // nanoseconds in the file
+                "{root} frame {frame} at {t} s, period {period} s"
+            );
+        }
+        assert!((tip[32].1 - amp).abs() < 1e-9 * amp, "{root}");
+        assert!((tip[64].1 - amp).abs() < 1e-9 * amp, "{root}");
+        assert!(
+            tip[8].1 < 1e-9,
+            "{root}: {} m at a quarter period",
+            tip[8].1
+        );
+        let joints = entity(&s, &format!("{root}/series/joints_rad"));
+        assert_eq!(
+            joints["names"],
+            serde_json::json!(["j1", "j2", "j3", "j4", "j5"])
+        );
+        let want: Vec<f64> = md["joints_rad"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|a| a["angle"].as_f64().unwrap())
+            .collect();
+        let big = want.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        if big > 1e-6 {
+            // The joints move along the mode's shape (one scale for all), in its
+            // phase, and swing to the opposite side after half a period.
+            let jb = want.iter().position(|v| v.abs() == big).unwrap();
+            let scale = instance(joints, jb)[0].1 / want[jb];
+            assert!(scale > 0.0, "{root}: drawn in the mode's phase");
+            for (k, w) in want.iter().enumerate() {
+                let v = instance(joints, k);
+                assert!(
+                    (v[0].1 - scale * w).abs() <= 1e-9 * scale * big,
+                    "{root} j{}: {} vs {}",
+                    k + 1,
+                    v[0].1,
+                    scale * w
+                );
+                assert!((v[16].1 + v[0].1).abs() <= 1e-9 * scale * big);
+                assert!((v[32].1 - v[0].1).abs() <= 1e-9 * scale * big);
+            }
+        } else {
+            // A bending mode: the joints hold; the bent links' ends swing in the
+            // proportions of the mode's link-end deflections.
+            bending_checked = true;
+            let mut ratios = Vec::new();
+            for e in md["link_ends_m"].as_array().unwrap() {
+                let want = e["in_plane"]
+                    .as_f64()
+                    .unwrap()
+                    .hypot(e["out_of_plane"].as_f64().unwrap());
+                let link = e["link"].as_str().unwrap();
+                let beams = geometry(entity(&s, &format!("{root}/arm/{link}/beam")), "strips");
+                assert_eq!(beams.len(), 65);
+                let end = |k: usize| vec3(beams[k].1[0].as_array().unwrap().last().unwrap());
+                ratios.push((dist(end(0), end(16)), 2.0 * want));
+            }
+            let (d0, w0) = ratios
+                .iter()
+                .copied()
+                .fold((0.0, 0.0), |m, r| if r.1 > m.1 { r } else { m });
+            for (d, w) in ratios {
+                if w > 0.01 * w0 {
+                    assert!(
+                        (d / d0 - w / w0).abs() < 1e-4,
+                        "{root}: link end swings {d} of {d0}, mode {w} of {w0}"
+                    );
+                }
+            }
+        }
+        assert_eq!(entity(&s, &format!("{root}/arm/link3"))["rows"], 65);
+        let text = entity(&s, &format!("{root}/info"))["text"]
+            .as_str()
+            .unwrap()
+            .to_string();
+        let f_n = md["natural_hz"].as_f64().unwrap();
+        assert!(text.contains(&format!("{f_n:.4} Hz")), "{text}");
+        assert!(
+            text.contains(&format!("{:.4}", md["damping_ratio"].as_f64().unwrap())),
+            "{text}"
+        );
+    }
+    assert!(bending_checked, "mode 5 bends the links (2.81 Hz)");
+}
+
+#[test]
 fn a_bode_run_records_gain_and_phase_per_frequency() {
     let dir = tempfile::tempdir().unwrap();
     let scenario = dir.path().join("b.toml");

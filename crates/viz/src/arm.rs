@@ -500,99 +500,7 @@ impl Drawer {
             "view coordinates",
             s.log_static("/world", &ViewCoordinates::RIGHT_HAND_Z_UP()),
         );
-        let spec = self.arm.spec();
-        // Every link's URDF visuals and the pulleys on its joint axis, one static row
-        // per link (one batch per shape kind): a handful of chunks for the whole arm.
-        let mut shapes: Vec<LinkShapes> = vec![LinkShapes::default(); spec.links.len()];
-        let mut mesh_warned = false;
-        for (link, shapes) in spec.links.iter().zip(shapes.iter_mut()) {
-            for v in &link.visuals {
-                // The visual's pose in the link frame goes into the shape itself.
-                let t = v.link_from_visual.translation.vector;
-                let q = v.link_from_visual.rotation;
-                let rot = RotationQuat::from(quat(&q));
-                let color = v.rgba.map_or(Color::from_rgb(170, 170, 180), |c| {
-                    let b = |x: f64| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
-                    Color::from_unmultiplied_rgba(b(c[0]), b(c[1]), b(c[2]), b(c[3]))
-                });
-                match &v.geometry {
-                    Geometry::Box { size_m } => shapes.boxes.push((
-                        [size_m.x as f32, size_m.y as f32, size_m.z as f32],
-                        point(t),
-                        rot,
-                        color,
-                    )),
-                    Geometry::Cylinder { radius_m, length_m } => shapes.cylinders.push((
-                        *length_m as f32,
-                        *radius_m as f32,
-                        point(t),
-                        rot,
-                        color,
-                    )),
-                    // Rerun's capsule starts at its translation; URDF's is centred.
-                    Geometry::Capsule { radius_m, length_m } => shapes.capsules.push((
-                        *length_m as f32,
-                        *radius_m as f32,
-                        point(t + q * Vector3::new(0.0, 0.0, -0.5 * length_m)),
-                        rot,
-                        color,
-                    )),
-                    Geometry::Sphere { radius_m } => {
-                        shapes.spheres.push((*radius_m as f32, point(t), color));
-                    }
-                    Geometry::Mesh { filename, .. } => {
-                        if !mesh_warned {
-                            mesh_warned = true;
-                            eprintln!(
-                                "rerun: mesh visual `{filename}` of link `{}` is not drawn (only box, cylinder, \
-                                 capsule and sphere visuals are); the run goes on",
-                                link.name
-                            );
-                        }
-                    }
-                }
-            }
-        }
-        // Pulleys: every pulley on a joint axis, in the child link's frame (whose
-        // origin is the joint origin).
-        for (j, joint) in spec.joints.iter().enumerate() {
-            let mut radii = Vec::new();
-            for p in self.arm.pairs() {
-                if p.spec.joint == j {
-                    radii.push(p.spec.joint_radius_m);
-                }
-                radii.extend(
-                    p.spec
-                        .route
-                        .iter()
-                        .filter(|r| r.joint == Some(j))
-                        .map(|r| r.radius_m),
-                );
-            }
-            let axis = joint.axis.into_inner();
-            let rot = UnitQuaternion::rotation_between(&Vector3::z(), &axis).unwrap_or_else(|| {
-                UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
-            });
-            let width = 0.02 * self.scale_m;
-            let n = radii.len();
-            for (i, r) in radii.iter().enumerate() {
-                let c = axis * (i as f64 - 0.5 * (n as f64 - 1.0)) * 1.5 * width;
-                shapes[joint.child_link].cylinders.push((
-                    width as f32,
-                    *r as f32,
-                    point(c),
-                    RotationQuat::from(quat(&rot)),
-                    Color::from_rgb(120, 120, 130),
-                ));
-            }
-        }
-        for (link, shapes) in spec.links.iter().zip(&shapes) {
-            let path = format!("/world/arm/{}", link.name);
-            let archetypes = shapes.archetypes();
-            if !archetypes.is_empty() {
-                rec.report(&path, s.log_static(path.as_str(), &archetypes));
-            }
-        }
+        log_links(rec, &self.arm, "/world/arm", self.scale_m, None);
         let np = self.arm.pairs().len();
         rec.report(
             "/world/motors",
@@ -776,6 +684,114 @@ impl Drawer {
             points.push([pt.x, pt.y, pt.z]);
         }
         self.points_m = points;
+    }
+}
+
+/// Logs the static scene of every link of `arm` under `<root>/<link>`: its URDF visuals
+/// (coloured `tint` instead of their own colours when given) and the pulleys on its
+/// joint axis, one static row per link (one batch per shape kind).
+pub(crate) fn log_links(
+    rec: &Sink,
+    arm: &DrivenArm,
+    root: &str,
+    scale_m: f64,
+    tint: Option<Color>,
+) {
+    let s = rec.stream();
+    let spec = arm.spec();
+    // Every link's URDF visuals and the pulleys on its joint axis, one static row
+    // per link (one batch per shape kind): a handful of chunks for the whole arm.
+    let mut shapes: Vec<LinkShapes> = vec![LinkShapes::default(); spec.links.len()];
+    let mut mesh_warned = false;
+    for (link, shapes) in spec.links.iter().zip(shapes.iter_mut()) {
+        for v in &link.visuals {
+            // The visual's pose in the link frame goes into the shape itself.
+            let t = v.link_from_visual.translation.vector;
+            let q = v.link_from_visual.rotation;
+            let rot = RotationQuat::from(quat(&q));
+            let color = tint.unwrap_or_else(|| {
+                v.rgba.map_or(Color::from_rgb(170, 170, 180), |c| {
+                    let b = |x: f64| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
+                    Color::from_unmultiplied_rgba(b(c[0]), b(c[1]), b(c[2]), b(c[3]))
+                })
+            });
+            match &v.geometry {
+                Geometry::Box { size_m } => shapes.boxes.push((
+                    [size_m.x as f32, size_m.y as f32, size_m.z as f32],
+                    point(t),
+                    rot,
+                    color,
+                )),
+                Geometry::Cylinder { radius_m, length_m } => shapes.cylinders.push((
+                    *length_m as f32,
+                    *radius_m as f32,
+                    point(t),
+                    rot,
+                    color,
+                )),
+                // Rerun's capsule starts at its translation; URDF's is centred.
+                Geometry::Capsule { radius_m, length_m } => shapes.capsules.push((
+                    *length_m as f32,
+                    *radius_m as f32,
+                    point(t + q * Vector3::new(0.0, 0.0, -0.5 * length_m)),
+                    rot,
+                    color,
+                )),
+                Geometry::Sphere { radius_m } => {
+                    shapes.spheres.push((*radius_m as f32, point(t), color));
+                }
+                Geometry::Mesh { filename, .. } => {
+                    if !mesh_warned {
+                        mesh_warned = true;
+                        eprintln!(
+                                "rerun: mesh visual `{filename}` of link `{}` is not drawn (only box, cylinder, \
+                                 capsule and sphere visuals are); the run goes on",
+                                link.name
+                            );
+                    }
+                }
+            }
+        }
+    }
+    // Pulleys: every pulley on a joint axis, in the child link's frame (whose
+    // origin is the joint origin).
+    for (j, joint) in spec.joints.iter().enumerate() {
+        let mut radii = Vec::new();
+        for p in arm.pairs() {
+            if p.spec.joint == j {
+                radii.push(p.spec.joint_radius_m);
+            }
+            radii.extend(
+                p.spec
+                    .route
+                    .iter()
+                    .filter(|r| r.joint == Some(j))
+                    .map(|r| r.radius_m),
+            );
+        }
+        let axis = joint.axis.into_inner();
+        let rot = UnitQuaternion::rotation_between(&Vector3::z(), &axis).unwrap_or_else(|| {
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
+        });
+        let width = 0.02 * scale_m;
+        let n = radii.len();
+        for (i, r) in radii.iter().enumerate() {
+            let c = axis * (i as f64 - 0.5 * (n as f64 - 1.0)) * 1.5 * width;
+            shapes[joint.child_link].cylinders.push((
+                width as f32,
+                *r as f32,
+                point(c),
+                RotationQuat::from(quat(&rot)),
+                Color::from_rgb(120, 120, 130),
+            ));
+        }
+    }
+    for (link, shapes) in spec.links.iter().zip(&shapes) {
+        let path = format!("{root}/{}", link.name);
+        let archetypes = shapes.archetypes();
+        if !archetypes.is_empty() {
+            rec.report(&path, s.log_static(path.as_str(), &archetypes));
+        }
     }
 }
 

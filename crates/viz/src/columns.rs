@@ -102,6 +102,8 @@ const SEND_INTERVAL: Duration = Duration::from_millis(250);
 pub struct Columns {
     timeline: &'static str,
     index: Index,
+    /// A second timeline of the same frames, in seconds ([`Columns::also_on_duration`]).
+    second: Option<(&'static str, Vec<f64>)>,
     series: Vec<Series>,
     poses: Vec<(String, Vec<[f32; 3]>, Vec<[f32; 4]>)>,
     strips: Vec<Strips>,
@@ -128,6 +130,7 @@ impl Columns {
         Self {
             timeline,
             index,
+            second: None,
             series: Vec::new(),
             poses: Vec::new(),
             strips: Vec::new(),
@@ -199,6 +202,20 @@ impl Columns {
     pub fn strip_colors(&mut self, entity: impl Into<String>) -> ColorsId {
         self.colors.push((entity.into(), Vec::new(), Vec::new()));
         ColorsId(self.colors.len() - 1)
+    }
+
+    /// The same channels, their frames also on the duration timeline `timeline` (give
+    /// each frame its time there with [`Columns::also_at_s`]).
+    pub fn also_on_duration(mut self, timeline: &'static str) -> Self {
+        self.second = Some((timeline, Vec::new()));
+        self
+    }
+
+    /// The current frame's time on the second timeline, s.
+    pub fn also_at_s(&mut self, time_s: f64) {
+        if let Some((_, t)) = &mut self.second {
+            t.push(time_s);
+        }
     }
 
     /// Starts a frame at `time_s` (duration timelines).
@@ -304,11 +321,15 @@ impl Columns {
         counts.push(all.len() - before);
     }
 
-    fn time_column(&self) -> TimeColumn {
-        match &self.index {
+    fn time_columns(&self) -> Vec<TimeColumn> {
+        let mut out = vec![match &self.index {
             Index::DurationS(t) => TimeColumn::new_duration_secs(self.timeline, t.clone()),
             Index::Sequence(t) => TimeColumn::new_sequence(self.timeline, t.clone()),
+        }];
+        if let Some((name, t)) = &self.second {
+            out.push(TimeColumn::new_duration_secs(*name, t.clone()));
         }
+        out
     }
 
     /// [`Columns::flush`] when a quarter of a second (wall clock) has passed since the
@@ -333,6 +354,9 @@ impl Columns {
         match &mut self.index {
             Index::DurationS(t) => t.clear(),
             Index::Sequence(t) => t.clear(),
+        }
+        if let Some((_, t)) = &mut self.second {
+            t.clear();
         }
         for s in &mut self.series {
             s.values.clear();
@@ -389,7 +413,14 @@ impl Columns {
                 }
             }
         }
-        let time = self.time_column();
+        let time = self.time_columns();
+        if time.iter().any(|t| t.num_rows() != n) {
+            rec.report(
+                self.timeline,
+                Err::<(), _>(format!("a second timeline missed frames ({n} frames)")),
+            );
+            return;
+        }
         // Sends one channel's columns as a chunk, or reports why it cannot (once).
         let send = |entity: &str, frames: usize, columns: Result<Vec<_>, String>| {
             let sent = if frames == n {
@@ -482,7 +513,7 @@ impl Columns {
 /// through a map lookup, cost as much as serialising the data.
 fn time_ordered_chunk(
     entity: &str,
-    time: &TimeColumn,
+    time: &[TimeColumn],
     columns: Vec<SerializedComponentColumn>,
 ) -> Result<Chunk, rerun::log::ChunkError> {
     let id = ChunkId::new();
@@ -490,8 +521,10 @@ fn time_ordered_chunk(
         id,
         entity.into(),
         Some(true),
-        row_ids_after(id, time.num_rows()),
-        std::iter::once((*time.timeline().name(), time.clone())).collect(),
+        row_ids_after(id, time.first().map_or(0, TimeColumn::num_rows)),
+        time.iter()
+            .map(|t| (*t.timeline().name(), t.clone()))
+            .collect(),
         columns.into_iter().collect(),
     )
 }

@@ -10,8 +10,9 @@
 //!   (`send_columns`), so logging costs a few pushes per frame instead of one
 //!   `log` call per entity per frame.
 //! - [`RateGate`] picks the frames to log at `--rerun-hz` of simulated time.
-//! - [`arm`], [`rig`] and [`ident`] log the arm runs, the rig's frequency responses
-//!   and the comparisons with measurements; each sends a default blueprint.
+//! - [`arm`], [`rig`], [`ident`] and [`modes`] log the arm runs, the rig's frequency
+//!   responses, the comparisons with measurements and the arm's modes; each sends a
+//!   default blueprint.
 //!
 //! Entity paths are listed in `docs/rerun.md`. Logging only reads simulation states:
 //! it cannot change a result (tested bitwise in `tests/cli/rerun_cli.rs`).
@@ -20,6 +21,7 @@ pub mod arm;
 mod columns;
 mod error;
 pub mod ident;
+pub mod modes;
 mod recorder;
 pub mod rig;
 mod rrd_file;
