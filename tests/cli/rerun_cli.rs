@@ -577,6 +577,163 @@ fn compare_records_measured_model_and_residual_per_run() {
     }
 }
 
+/// Columns of a CSV file with a header: name -> values.
+fn csv_columns(path: &str) -> std::collections::HashMap<String, Vec<f64>> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<String> = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(str::to_string)
+        .collect();
+    let mut cols: Vec<Vec<f64>> = vec![Vec::new(); header.len()];
+    for l in lines.filter(|l| !l.trim().is_empty()) {
+        for (c, x) in cols.iter_mut().zip(l.split(',')) {
+            c.push(x.trim().parse().unwrap());
+        }
+    }
+    header.into_iter().zip(cols).collect()
+}
+
+/// Angle of a rotation about y from its quaternion `[x, y, z, w]`.
+fn pitch(q: &Value) -> f64 {
+    let q: Vec<f64> = q
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert!(q[0].abs() < 1e-6 && q[2].abs() < 1e-6, "not about y: {q:?}");
+    2.0 * q[1].atan2(q[3])
+}
+
+#[test]
+fn compare_on_an_arm_dataset_records_both_arms_and_every_channel() {
+    let dir = tempfile::tempdir().unwrap();
+    let rrd = dir.path().join("a.rrd");
+    let json = dir.path().join("a.json");
+    let data = format!("{ROOT}/data/examples/example_arm_control");
+    let plain = dir.path().join("plain.json");
+    let o = longreach(&[
+        "compare",
+        &data,
+        "--json",
+        json.to_str().unwrap(),
+        "--rerun",
+        &format!("save:{}", rrd.display()),
+    ]);
+    let out = ok(&o);
+    assert!(out.contains("wrote Rerun recording"), "{out}");
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("does not draw"));
+    // Drawing only reads the simulated states: the comparison is the same without it.
+    ok(&longreach(&[
+        "compare",
+        &data,
+        "--json",
+        plain.to_str().unwrap(),
+    ]));
+    let j_text = std::fs::read_to_string(&json).unwrap();
+    assert_eq!(j_text, std::fs::read_to_string(&plain).unwrap());
+    let Some(s) = read_back(&rrd) else { return };
+    let j: Value = serde_json::from_str(&j_text).unwrap();
+    let channels = j["channels"].as_array().unwrap();
+    // 4 runs x 23 channels (5 motors, 5 joints, 10 tensions, the tip's 3 axes).
+    let runs = ["move_01", "move_02", "move_03", "move_04"];
+    assert_eq!(channels.len(), 4 * 23);
+    for run in runs {
+        let csv = csv_columns(&format!("{data}/{run}.csv"));
+        let samples = csv["time_s"].len();
+        assert_eq!(samples, 401);
+        for ch in channels.iter().filter(|c| c["run"] == run) {
+            let name = ch["channel"].as_str().unwrap();
+            let root = format!("/compare/{run}/{name}");
+            let measured = scalars(entity(&s, &format!("{root}/measured")));
+            let model = scalars(entity(&s, &format!("{root}/model")));
+            let residual = scalars(entity(&s, &format!("{root}/residual")));
+            assert_eq!(measured.len(), samples, "{root}");
+            assert_eq!(model.len(), samples, "{root}");
+            // The measured series is the dataset's column, at its times.
+            for (k, (t, v)) in measured.iter().enumerate() {
+                assert!((t - csv["time_s"][k]).abs() < 1e-9, "{root} t");
+                assert_eq!(*v, csv[name][k], "{root} sample {k}");
+                assert!((v - model[k].1 - residual[k].1).abs() < 1e-12);
+            }
+            // The model series is what compare measured against: its RMS error.
+            let rms = (measured
+                .iter()
+                .zip(&model)
+                .map(|(a, b)| (a.1 - b.1).powi(2))
+                .sum::<f64>()
+                / samples as f64)
+                .sqrt();
+            let want = ch["rms_error"].as_f64().unwrap();
+            assert!(
+                (rms - want).abs() <= 1e-9 * want.max(1e-12),
+                "{root}: {rms} vs {want}"
+            );
+        }
+        // Both arms, posed at every sample: the measured one from its joint encoders
+        // (longreach5 pitches every joint about y: link 5's angle is their sum), the
+        // model one from the simulated states, 2.75 m beside it.
+        let measured5 = entity(&s, &format!("/world/{run}/measured/link5"));
+        let model5 = entity(&s, &format!("/world/{run}/model/link5"));
+        assert_eq!(measured5["rows"], samples);
+        assert_eq!(model5["rows"], samples);
+        let q = geometry(measured5, "quaternions");
+        let model_q = geometry(model5, "quaternions");
+        let model_joints: Vec<Vec<(f64, f64)>> = (1..=5)
+            .map(|j| scalars(entity(&s, &format!("/compare/{run}/joint_j{j}_rad/model"))))
+            .collect();
+        for k in [0, samples / 4, samples / 2, samples - 1] {
+            let sum: f64 = (1..=5).map(|j| csv[&format!("joint_j{j}_rad")][k]).sum();
+            let drawn = pitch(&q[k].1[0]);
+            assert!(
+                (drawn - sum).abs() < 1e-6,
+                "{run} sample {k}: {drawn} vs {sum}"
+            );
+            let model_sum: f64 = model_joints.iter().map(|m| m[k].1).sum();
+            let drawn = pitch(&model_q[k].1[0]);
+            assert!(
+                (drawn - model_sum).abs() < 1e-6,
+                "{run} model sample {k}: {drawn} vs {model_sum}"
+            );
+        }
+        // The measured tip, where the dataset has it (f32 points).
+        let tips = geometry(entity(&s, &format!("/world/{run}/measured/tip")), "points");
+        assert_eq!(tips.len(), samples);
+        for (k, (_, p)) in tips.iter().enumerate() {
+            let p = vec3(&p[0]);
+            for (a, axis) in ["x", "y", "z"].iter().enumerate() {
+                let want = csv[&format!("tip_{axis}_m")][k];
+                assert!((p[a] - want).abs() < 2e-6, "{run} tip {axis} sample {k}");
+            }
+        }
+        assert_eq!(
+            entity(&s, &format!("/world/{run}/model/tip"))["rows"],
+            samples
+        );
+        let offset = entity(&s, &format!("/world/{run}/model"));
+        let t = vec3(&geometry_static(offset, "translations")[0]);
+        assert!((t[1] - 0.25 * 11.0).abs() < 0.01 && t[0] == 0.0, "{t:?}");
+        assert_eq!(
+            entity(&s, &format!("/world/{run}/measured/tip_path"))["static"],
+            true
+        );
+    }
+}
+
+/// The static values of a geometry list of the summary.
+fn geometry_static<'a>(e: &'a Value, key: &str) -> Vec<&'a Value> {
+    e[key]
+        .as_array()
+        .unwrap_or_else(|| panic!("no {key} in {e}"))
+        .iter()
+        .filter(|tv| tv[0].is_null())
+        .map(|tv| &tv[1][0])
+        .collect()
+}
+
 #[test]
 fn an_unreachable_viewer_is_reported_once_and_the_run_goes_on() {
     let scenario = format!("{ROOT}/scenarios/arm5_elastic_stainless1.toml");

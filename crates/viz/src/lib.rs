@@ -11,13 +11,15 @@
 //!   `log` call per entity per frame.
 //! - [`RateGate`] picks the frames to log at `--rerun-hz` of simulated time.
 //! - [`arm`], [`rig`], [`ident`] and [`modes`] log the arm runs, the rig's frequency
-//!   responses, the comparisons with measurements and the arm's modes; each sends a
+//!   responses, the comparisons with measurements and the arm's modes, and
+//!   [`arm_compare`] the measured and model arms of an arm dataset; each sends a
 //!   default blueprint.
 //!
 //! Entity paths are listed in `docs/rerun.md`. Logging only reads simulation states:
 //! it cannot change a result (tested bitwise in `tests/cli/rerun_cli.rs`).
 
 pub mod arm;
+pub mod arm_compare;
 mod columns;
 mod error;
 pub mod ident;
