@@ -334,3 +334,78 @@ fn run_view(run: &ArmRun, name: &str) -> Horizontal {
     ])
     .with_name(run.name.clone())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use longreach_ident::analysis::{arm_dataset, simulate_arm_poses};
+    use longreach_ident::model::Model;
+    use longreach_ident::Dataset;
+
+    #[test]
+    #[allow(clippy::float_cmp)] // copies: bit for bit
+    fn without_joint_encoders_the_measured_arm_follows_its_motors_through_the_routing() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../data/examples/example_arm_control");
+        let ds = Dataset::load(&path).unwrap();
+        let model = Model::baseline(&ds).unwrap();
+        let poses = simulate_arm_poses(&ds, &model).unwrap();
+        let am = arm_dataset(&ds).unwrap();
+        let mut worst: f64 = 0.0;
+        for (run, (_, pose)) in am.runs.iter().zip(&poses) {
+            let with_joints = measured_joints(run, &pose.arm);
+            // The joint encoders themselves where measured.
+            for (k, c) in run.channels.iter().enumerate() {
+                if c.quantity == ArmQuantity::Joint {
+                    let j = pose.arm.pairs()[c.joint.unwrap()].spec.joint;
+                    assert!(with_joints
+                        .iter()
+                        .zip(&run.channels[k].values)
+                        .all(|(q, v)| q[j] == *v));
+                }
+            }
+            // The same run without its joint encoders: the motors through the routing
+            // (rigid ropes) put the joints where the encoders saw them, to the ropes'
+            // stretch.
+            let mut motors_only = run.clone();
+            motors_only
+                .channels
+                .retain(|c| c.quantity != ArmQuantity::Joint);
+            let from_motors = measured_joints(&motors_only, &pose.arm);
+            let moved = with_joints
+                .iter()
+                .flat_map(|q| q.iter().zip(&with_joints[0]).map(|(a, b)| (a - b).abs()))
+                .fold(0.0, f64::max);
+            assert!(moved > 0.09, "{}: moves {moved} rad", run.name);
+            // At rest at the end: the ropes' static stretch (the payload's run, 8 kg,
+            // the most); during the moves the distal links ring on the ropes, which the
+            // motors do not see.
+            let (a, b) = (from_motors.last().unwrap(), with_joints.last().unwrap());
+            for (x, y) in a.iter().zip(b) {
+                worst = worst.max((x - y).abs());
+            }
+            let base_rms = (from_motors
+                .iter()
+                .zip(&with_joints)
+                .map(|(a, b)| (a[0] - b[0]).powi(2))
+                .sum::<f64>()
+                / from_motors.len() as f64)
+                .sqrt();
+            assert!(base_rms < 1e-3, "{}: j1 {base_rms} rad rms", run.name);
+            // Without motors either: the commands.
+            let mut none = motors_only;
+            none.channels.clear();
+            let from_commands = measured_joints(&none, &pose.arm);
+            for (p, pair) in pose.arm.pairs().iter().enumerate() {
+                for (q, c) in from_commands.iter().zip(&run.command_rad[p]) {
+                    assert_eq!(q[pair.spec.joint], *c);
+                }
+            }
+        }
+        assert!(
+            worst < 0.035,
+            "motors vs joint encoders at rest: {worst} rad"
+        );
+        assert!(worst > 1e-3, "the ropes stretch: {worst} rad");
+    }
+}
