@@ -726,6 +726,76 @@ fn compare_on_an_arm_dataset_records_both_arms_and_every_channel() {
     }
 }
 
+#[test]
+fn diagnose_on_an_arm_dataset_records_the_arms_the_winner_and_the_ranking() {
+    // A short synthetic arm dataset with joint friction hidden (1.5 s at 50 Hz: the
+    // diagnosis takes seconds, not the minutes of the examples).
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("friction");
+    ok(&longreach(&[
+        "synth",
+        "--arm",
+        &format!("{ROOT}/scenarios/arm_dyneema2_distal_step.toml"),
+        "--move",
+        "j5:0.1",
+        "--duration-s",
+        "1.5",
+        "--sample-hz",
+        "50",
+        "--effect",
+        "joint_friction",
+        "--out",
+        data.to_str().unwrap(),
+    ]));
+    let rrd = dir.path().join("d.rrd");
+    let out = ok(&longreach(&[
+        "diagnose",
+        data.to_str().unwrap(),
+        "--rerun",
+        &format!("save:{}", rrd.display()),
+    ]));
+    assert!(out.contains("missing effect: joint_friction"), "{out}");
+    let Some(s) = read_back(&rrd) else { return };
+    let ranking = entity(&s, "/diagnose/ranking")["text"].as_str().unwrap();
+    assert!(ranking.contains("| 1 | joint_friction |"), "{ranking}");
+    let csv = csv_columns(data.join("move_01.csv").to_str().unwrap());
+    let samples = csv["time_s"].len();
+    assert_eq!(samples, 76);
+    let root = "/compare/move_01/joint_j5_rad";
+    let measured = scalars(entity(&s, &format!("{root}/measured")));
+    let model = scalars(entity(&s, &format!("{root}/model")));
+    let after = scalars(entity(&s, &format!("{root}/with_effect")));
+    assert_eq!(measured.len(), samples);
+    assert_eq!(after.len(), samples);
+    for (k, (_, v)) in measured.iter().enumerate() {
+        assert!(
+            v.to_bits() == csv["joint_j5_rad"][k].to_bits(),
+            "sample {k}"
+        );
+    }
+    let rms = |m: &[(f64, f64)]| {
+        (measured
+            .iter()
+            .zip(m)
+            .map(|(a, b)| (a.1 - b.1).powi(2))
+            .sum::<f64>()
+            / samples as f64)
+            .sqrt()
+    };
+    // The friction the baseline misses shows on the moved joint: the winner's channel
+    // is much closer to the measurement.
+    let (base, with) = (rms(&model), rms(&after));
+    assert!(
+        with < 0.5 * base,
+        "joint j5: {with} rad rms with the effect, {base} without"
+    );
+    assert_eq!(entity(&s, "/world/move_01/model/link5")["rows"], samples);
+    assert_eq!(entity(&s, "/world/move_01/measured/link5")["rows"], samples);
+    // Not the stacked channel the fit compares.
+    let ents = s["entities"].as_object().unwrap();
+    assert!(!ents.contains_key("/compare/move_01/measured"));
+}
+
 /// The static values of a geometry list of the summary.
 fn geometry_static<'a>(e: &'a Value, key: &str) -> Vec<&'a Value> {
     e[key]
