@@ -119,18 +119,26 @@ pub fn run_compare_arm(
     )?;
     // With Rerun on, the simulations keep the model arm's coordinates (the same
     // channels: the states are only read).
-    let (sims, poses): (Vec<Channels>, Vec<ArmPoses>) = if rec.is_enabled() {
-        analysis::simulate_arm_poses(ds, model)
-            .map_err(|e| anyhow!("{e}"))?
-            .into_iter()
-            .unzip()
+    let simulated = if rec.is_enabled() {
+        analysis::simulate_arm_poses(ds, model).map(|v| v.into_iter().unzip())
     } else {
-        (
-            analysis::simulate_arm(ds, model).map_err(|e| anyhow!("{e}"))?,
-            Vec::new(),
-        )
+        analysis::simulate_arm(ds, model).map(|s| (s, Vec::new()))
     };
-    let c = analysis::compare_arm(ds, &sims).map_err(|e| anyhow!("{e}"))?;
+    let (sims, poses): (Vec<Channels>, Vec<ArmPoses>) = match simulated {
+        Ok(v) => v,
+        Err(e) => {
+            // Nothing to draw: no recording is left behind.
+            rec.discard();
+            bail!("{e}");
+        }
+    };
+    let c = match analysis::compare_arm(ds, &sims) {
+        Ok(c) => c,
+        Err(e) => {
+            rec.discard();
+            bail!("{e}");
+        }
+    };
     if let Some(am) = analysis::arm_dataset(ds) {
         longreach_viz::arm_compare::log_arm_comparison(&rec, am, &sims, &poses, None, None);
     }

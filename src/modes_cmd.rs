@@ -54,8 +54,14 @@ pub fn run(args: &ModesArgs) -> Result<ExitCode> {
         &format!("modes {}", args.scenario.display()),
         &rerun_args::default_rrd(None, &args.scenario, "_modes"),
     )?;
-    let m = longreach_arm::modes::modes(&arm)
-        .with_context(|| format!("linearising {}", args.scenario.display()))?;
+    let m = match longreach_arm::modes::modes(&arm) {
+        Ok(m) => m,
+        Err(e) => {
+            // Nothing to draw: no recording is left behind.
+            rec.discard();
+            return Err(e).with_context(|| format!("linearising {}", args.scenario.display()));
+        }
+    };
     longreach_viz::modes::log_modes(&rec, &arm, &m, args.top);
     let closing = rec.finish_in_background();
     let spec = arm.spec();

@@ -445,6 +445,23 @@ fn modes_are_drawn_oscillating_at_their_frequency_and_scale() {
 }
 
 #[test]
+fn modes_that_fail_leave_no_recording() {
+    let dir = tempfile::tempdir().unwrap();
+    let rrd = dir.path().join("m.rrd");
+    // Relay friction has no linearisation: modes refuses it.
+    let o = longreach(&[
+        "modes",
+        &format!("{ROOT}/scenarios/arm_dyneema2_base_step_relay_friction.toml"),
+        "--rerun",
+        &format!("save:{}", rrd.display()),
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("relay friction"));
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+#[test]
 fn a_bode_run_records_gain_and_phase_per_frequency() {
     let dir = tempfile::tempdir().unwrap();
     let scenario = dir.path().join("b.toml");
