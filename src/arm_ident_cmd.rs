@@ -10,12 +10,13 @@ use comfy_table::Table;
 
 use longreach_ident::analysis::{self, ArmComparison, Figures};
 use longreach_ident::model::Model;
-use longreach_ident::plant::Channels;
+use longreach_ident::plant::{ArmPoses, Channels};
 use longreach_ident::synth::{self, ArmMove, ArmMovesOptions};
 use longreach_ident::{Dataset, DatasetKind};
 use longreach_plot::{write_png, Figure, Panel, Series, Style};
 
 use crate::output::{write_atomic, write_atomic_with};
+use crate::rerun_args::{self, RerunArgs};
 
 fn opt(x: Option<f64>, digits: usize) -> String {
     x.map_or("-".into(), |v| format!("{v:.digits$}"))
@@ -102,19 +103,46 @@ fn figures_table(c: &ArmComparison) -> Table {
     t
 }
 
-/// Runs `compare` on an arm dataset.
+/// Runs `compare` on an arm dataset (`path`); with `--rerun`, draws the measured and
+/// the model arm of every run and every channel, measured against model.
 pub fn run_compare_arm(
     ds: &Dataset,
+    path: &Path,
     model: &Model,
     json: Option<&Path>,
     report: Option<&Path>,
-    rerun: bool,
+    rerun: &RerunArgs,
 ) -> Result<ExitCode> {
-    if rerun {
-        eprintln!("note: --rerun does not draw arm datasets yet; compare runs without it");
+    let rec = rerun.recorder(
+        &format!("compare {}", path.display()),
+        &rerun_args::default_rrd(None, path, "_compare"),
+    )?;
+    // With Rerun on, the simulations keep the model arm's coordinates (the same
+    // channels: the states are only read).
+    let simulated = if rec.is_enabled() {
+        analysis::simulate_arm_poses(ds, model).map(|v| v.into_iter().unzip())
+    } else {
+        analysis::simulate_arm(ds, model).map(|s| (s, Vec::new()))
+    };
+    let (sims, poses): (Vec<Channels>, Vec<ArmPoses>) = match simulated {
+        Ok(v) => v,
+        Err(e) => {
+            // Nothing to draw: no recording is left behind.
+            rec.discard();
+            bail!("{e}");
+        }
+    };
+    let c = match analysis::compare_arm(ds, &sims) {
+        Ok(c) => c,
+        Err(e) => {
+            rec.discard();
+            bail!("{e}");
+        }
+    };
+    if let Some(am) = analysis::arm_dataset(ds) {
+        longreach_viz::arm_compare::log_arm_comparison(&rec, am, &sims, &poses, None, None);
     }
-    let sims = analysis::simulate_arm(ds, model).map_err(|e| anyhow!("{e}"))?;
-    let c = analysis::compare_arm(ds, &sims).map_err(|e| anyhow!("{e}"))?;
+    rerun_args::finish(rec);
     print_arm_comparison(&c);
     if let Some(p) = json {
         write_atomic(p, serde_json::to_string_pretty(&c)?.as_bytes())?;
@@ -123,6 +151,50 @@ pub fn run_compare_arm(
         write_arm_report(dir, ds, &c, &sims)?;
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `diagnose --rerun` on an arm dataset: the measured and model arms and channels of
+/// the fitted baseline `base`, the channels of the model with the winning effect
+/// `winner`, and the ranking. A simulation that fails here is reported and skipped
+/// (drawing never stops a command).
+pub fn log_arm_diagnosis(
+    rec: &longreach_viz::Recorder,
+    ds: &Dataset,
+    d: &analysis::Diagnosis,
+    base: &Model,
+    winner: Option<&Model>,
+) {
+    let Some(am) = analysis::arm_dataset(ds) else {
+        return;
+    };
+    if !rec.is_enabled() {
+        return;
+    }
+    let (sims, poses): (Vec<Channels>, Vec<ArmPoses>) = match analysis::simulate_arm_poses(ds, base)
+    {
+        Ok(v) => v.into_iter().unzip(),
+        Err(e) => {
+            eprintln!("rerun: simulating the baseline to draw it failed ({e}); diagnose goes on");
+            (Vec::new(), Vec::new())
+        }
+    };
+    let after = winner.and_then(|m| match analysis::simulate_arm(ds, m) {
+        Ok(s) => Some(s),
+        Err(e) => {
+            eprintln!(
+                "rerun: simulating the winning model to draw it failed ({e}); diagnose goes on"
+            );
+            None
+        }
+    });
+    longreach_viz::arm_compare::log_arm_comparison(
+        rec,
+        am,
+        &sims,
+        &poses,
+        Some(d),
+        after.as_deref(),
+    );
 }
 
 /// `report.md` (the tables) and one PNG per run: measured against model, one panel per

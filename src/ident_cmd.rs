@@ -386,10 +386,11 @@ pub fn run_compare(a: &CompareArgs) -> Result<ExitCode> {
     if matches!(ds.kind, longreach_ident::DatasetKind::ArmMoves(_)) {
         return crate::arm_ident_cmd::run_compare_arm(
             &ds,
+            &a.data.dataset,
             &model,
             a.data.json.as_deref(),
             a.report.as_deref(),
-            a.rerun.rerun.is_some(),
+            &a.rerun,
         );
     }
     let rec = a.rerun.recorder(
@@ -430,8 +431,27 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
     )?;
     let prep = Prepared::new(&ds).map_err(message)?;
     let (d, base, winner) = analysis::diagnose(&prep, &model).map_err(message)?;
-    let after = winner.as_ref().map(|w| w.sims.as_slice());
-    longreach_viz::ident::log_comparison(&rec, &prep, &d.comparison, &base.sims, Some(&d), after);
+    if matches!(ds.kind, longreach_ident::DatasetKind::ArmMoves(_)) {
+        // The arm plant's compared channel is every channel stacked: draw the arms
+        // and the channels themselves instead.
+        crate::arm_ident_cmd::log_arm_diagnosis(
+            &rec,
+            &ds,
+            &d,
+            &base.model,
+            winner.as_ref().map(|w| &w.model),
+        );
+    } else {
+        let after = winner.as_ref().map(|w| w.sims.as_slice());
+        longreach_viz::ident::log_comparison(
+            &rec,
+            &prep,
+            &d.comparison,
+            &base.sims,
+            Some(&d),
+            after,
+        );
+    }
     rerun_args::finish(rec);
     println!(
         "baseline NRMSE {:.4} (noise floor {:.4})",

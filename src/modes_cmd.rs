@@ -11,6 +11,7 @@ use comfy_table::{presets::UTF8_BORDERS_ONLY, Table};
 use serde_json::json;
 
 use crate::output::write_atomic;
+use crate::rerun_args::{self, RerunArgs};
 
 /// Arguments of `longreach modes`.
 #[derive(Debug, Args)]
@@ -29,9 +30,14 @@ pub struct ModesArgs {
     /// Write the modes as JSON to this file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
-    /// Modes to print (lowest first; the JSON holds them all).
+    /// Modes to print and to draw with `--rerun` (lowest first; the JSON holds them
+    /// all).
     #[arg(long, default_value_t = 12)]
     pub top: usize,
+    /// Draw the `--top` modes in Rerun: the arm oscillating along each mode shape (a
+    /// tab per mode, with its frequency and damping). `--rerun-hz` is not used.
+    #[command(flatten)]
+    pub rerun: RerunArgs,
 }
 
 /// Linearises the scenario's arm and prints its modes.
@@ -43,8 +49,21 @@ pub fn run(args: &ModesArgs) -> Result<ExitCode> {
             .with_initial_q_rad(q.clone())
             .map_err(|e| anyhow::anyhow!("--pose: {e}"))?;
     }
-    let m = longreach_arm::modes::modes(&arm)
-        .with_context(|| format!("linearising {}", args.scenario.display()))?;
+    // A bad target or an unwritable file fails before the linearisation.
+    let rec = args.rerun.recorder(
+        &format!("modes {}", args.scenario.display()),
+        &rerun_args::default_rrd(None, &args.scenario, "_modes"),
+    )?;
+    let m = match longreach_arm::modes::modes(&arm) {
+        Ok(m) => m,
+        Err(e) => {
+            // Nothing to draw: no recording is left behind.
+            rec.discard();
+            return Err(e).with_context(|| format!("linearising {}", args.scenario.display()));
+        }
+    };
+    longreach_viz::modes::log_modes(&rec, &arm, &m, args.top);
+    let closing = rec.finish_in_background();
     let spec = arm.spec();
     let mut t = Table::new();
     t.load_preset(UTF8_BORDERS_ONLY).set_header(vec![
@@ -119,5 +138,6 @@ pub fn run(args: &ModesArgs) -> Result<ExitCode> {
         });
         write_atomic(path, serde_json::to_string_pretty(&doc)?.as_bytes())?;
     }
+    rerun_args::finished(closing);
     Ok(ExitCode::SUCCESS)
 }

@@ -1,9 +1,12 @@
 #!/usr/bin/env python3
 """Reads a Rerun recording back with Rerun's own Python SDK (rerun-sdk 0.36.3) and
 prints, as JSON, what every entity holds: row count (temporal rows; static ones
-apart), timelines, components, and for
+apart), timelines, components, for
 scalar series the (time, [values]) pairs (one value per instance of a group of
-series) and the series names. Used by tests/cli/rerun_cli.rs; also handy to
+series) and the series names, the (time, value) pairs of poses (`translations`,
+`quaternions`), line strips (`strips`) and points (`points`), and the markdown of
+text documents (`text`). The time is the first of the timelines `sim_time`,
+`mode_time`, `frequency_mhz`, `mode_frame` the chunk has (None for static rows). Used by tests/cli/rerun_cli.rs; also handy to
 check a recording by hand:
 
     python3 tools/rrd_summary.py run.rrd | python3 -m json.tool | less
@@ -14,6 +17,15 @@ import sys
 import rerun as rr
 import pyarrow as pa
 import rerun.experimental as rrx
+
+
+TIMELINES = ["sim_time", "mode_time", "frequency_mhz", "mode_frame"]
+GEOMETRY = {
+    "translations": "Transform3D:translation",
+    "quaternions": "Transform3D:quaternion",
+    "strips": "LineStrips3D:strips",
+    "points": "Points3D:positions",
+}
 
 
 def index_values(column):
@@ -48,17 +60,27 @@ def main(path):
                 continue
             if n not in ent["components"]:
                 ent["components"].append(n)
-        index = "sim_time" if "sim_time" in names else ("frequency_mhz" if "frequency_mhz" in names else None)
+        index = next((t for t in TIMELINES if t in names), None)
+        times = index_values(rb.column(index)) if index else [None] * rb.num_rows
         if "Scalars:scalars" in names and index:
-            times = index_values(rb.column(index))
             values = rb.column("Scalars:scalars").to_pylist()
             for t, v in zip(times, values):
                 ent["scalars"].append([t, v if v else []])
+        for key, column in GEOMETRY.items():
+            if column in names:
+                values = rb.column(column).to_pylist()
+                ent.setdefault(key, []).extend([t, v] for t, v in zip(times, values))
+        if "TextDocument:text" in names:
+            text = rb.column("TextDocument:text").to_pylist()[-1]
+            ent["text"] = text[0] if isinstance(text, list) and text else text
         if "SeriesLines:names" in names:
             for v in rb.column("SeriesLines:names").to_pylist():
                 ent["names"] = v or []
     for ent in out["entities"].values():
         ent["scalars"].sort(key=lambda tv: tv[0])
+        for key in GEOMETRY:
+            if key in ent:
+                ent[key].sort(key=lambda tv: -1.0 if tv[0] is None else tv[0])
     json.dump(out, sys.stdout)
 
 

@@ -49,6 +49,11 @@ pub struct Mode {
     pub shares: Vec<Share>,
     /// Joint angles at 1 J of potential energy (signed, phase of the largest part), rad.
     pub joints_rad: Vec<f64>,
+    /// Every generalised coordinate at 1 J, in the same phase: the joints (rad, as
+    /// `joints_rad`), then the flexible links' modal coordinates (m; the layout of
+    /// [`crate::flex::FlexLink::offset`]), so that `equilibrium_q + a * coords` is the
+    /// arm bent along the mode.
+    pub coords: Vec<f64>,
     /// Deflection of each flexible link's end at 1 J (in-plane, out-of-plane), m.
     pub link_end_m: Vec<(String, [f64; 2])>,
     /// Motor angles at 1 J, rad.
@@ -62,6 +67,9 @@ pub struct Mode {
 pub struct Modes {
     /// Joint angles of the pose, rad.
     pub pose_rad: Vec<f64>,
+    /// The generalised coordinates of the equilibrium the modes are about: the joints,
+    /// then the flexible links' modal coordinates (bent under gravity).
+    pub equilibrium_q: Vec<f64>,
     /// Step the arm was linearised with, s.
     pub dt_s: f64,
     /// Oscillatory modes, by natural frequency.
@@ -244,6 +252,7 @@ pub fn modes(arm: &DrivenArm) -> Result<Modes, ArmError> {
     out.sort_by(|a, b| a.natural_hz.total_cmp(&b.natural_hz));
     Ok(Modes {
         pose_rad: arm.initial_q_rad().to_vec(),
+        equilibrium_q: st0.q_rad.clone(),
         dt_s: h,
         modes: out,
         real_poles,
@@ -339,6 +348,7 @@ fn shape(
         damping_ratio: -s.re / s.norm(),
         shares,
         joints_rad: dq[..n].iter().map(|&c| re(c)).collect(),
+        coords: dq.iter().map(|&c| re(c)).collect(),
         link_end_m: ends
             .into_iter()
             .map(|(nm, [a, b])| (nm, [re(a), re(b)]))

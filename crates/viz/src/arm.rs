@@ -10,19 +10,28 @@
 //!                               axis (static, one batch per shape kind)
 //! /world/motors                 motor pulleys at the base (static)
 //! /world/ropes                  every rope, a strip per span, coloured by tension
+//! /world/arm/<link>/beam        flexible links: the centre line through the deflected
+//!                               shape (link frame)
+//! /world/tip                    flexible arms: the deflected tip, then the straight one
 //! /series/joints/angle_rad      "<joint> q" then "<joint> ref" for every joint
 //! /series/motors/angle_rad      "<joint> motor" then "<joint> motor ref" for every pair
 //! /series/motors/torque_n_m     servo torque of every pair, named by its joint
 //! /series/tensions/tension_n    "<joint> +" then "<joint> -" (one rope of the parallel ones)
 //! /series/tip/error_m           distance of the tip from where the commands put it
+//! /series/tip/deflection_m      flexible arms: deflected tip to the straight links' tip
 //! ```
+//!
+//! A flexible arm ([`longreach_arm::flex`]) is posed by its flexible kinematics: the
+//! child frames ride on the deflected ends, so links, pulleys and ropes follow the
+//! bending.
 //!
 //! Each `/series/...` entity is a group of series (one instance per name), so that a
 //! recording has a handful of chunks per send whatever the number of joints.
 
 use longreach_arm::fast::{FastDynamics, Kin};
+use longreach_arm::flex::{FlexKin, FlexLink};
 use longreach_arm::spec::Geometry;
-use longreach_arm::{DrivenArm, DrivenState};
+use longreach_arm::{DrivenArm, DrivenState, FlexDynamics};
 use nalgebra::{Rotation3, UnitQuaternion, Vector3};
 use rerun::blueprint::{
     Blueprint, BlueprintActivation, Horizontal, Spatial3DView, TimeSeriesView, Vertical,
@@ -33,7 +42,8 @@ use rerun::{Boxes3D, Capsules3D, Color, Cylinders3D, Ellipsoids3D, Quaternion, V
 use crate::worker::Worker;
 
 use crate::{
-    tension_color, Columns, RateGate, Recorder, SeriesId, Sink, StripsId, TransformId, SIM_TIME,
+    tension_color, Columns, PointsId, RateGate, Recorder, SeriesId, Sink, StripsId, TransformId,
+    SIM_TIME,
 };
 
 /// Frames handed to the drawing thread at a time.
@@ -71,6 +81,8 @@ pub struct ArmLogger<'a> {
 #[derive(Debug, Clone)]
 struct Layout {
     joints: usize,
+    /// Coordinates drawn: the joints, then the flexible links' modal coordinates.
+    coords: usize,
     pairs: usize,
     /// Spans of every pair (1 without relay friction).
     spans: Vec<usize>,
@@ -80,6 +92,7 @@ impl Layout {
     fn new(arm: &DrivenArm) -> Self {
         Self {
             joints: arm.spec().ndofs(),
+            coords: arm.ncoords(),
             pairs: arm.pairs().len(),
             spans: arm
                 .pairs()
@@ -90,15 +103,15 @@ impl Layout {
     }
 
     fn width(&self) -> usize {
-        1 + 2 * self.joints + 5 * self.pairs + 2 * self.spans.iter().sum::<usize>()
+        1 + self.coords + self.joints + 5 * self.pairs + 2 * self.spans.iter().sum::<usize>()
     }
 
     /// Appends the values of `st` to `out`.
     fn push(&self, arm: &DrivenArm, st: &DrivenState, out: &mut Vec<f64>) {
         let np = self.pairs;
         out.push(st.time_s);
-        // The joints (a flexible arm's modal coordinates follow them: not drawn yet).
-        out.extend_from_slice(&st.q_rad[..self.joints]);
+        // The joints, then a flexible arm's modal coordinates (the bent links).
+        out.extend_from_slice(&st.q_rad[..self.coords]);
         out.extend_from_slice(&st.q_ref_rad[..self.joints]);
         out.extend_from_slice(&st.motor_rad[..np]);
         out.extend_from_slice(&st.motor_ref_rad[..np]);
@@ -117,7 +130,7 @@ impl Layout {
     fn frame<'f>(&self, v: &'f [f64]) -> Frame<'f> {
         let (n, np) = (self.joints, self.pairs);
         let (time, v) = v.split_at(1);
-        let (q_rad, v) = v.split_at(n);
+        let (q_rad, v) = v.split_at(self.coords);
         let (q_ref_rad, v) = v.split_at(n);
         let (motor_rad, v) = v.split_at(np);
         let (motor_ref_rad, v) = v.split_at(np);
@@ -139,6 +152,7 @@ impl Layout {
 /// One logged state, read back from a batch (see [`Layout`]).
 struct Frame<'f> {
     time_s: f64,
+    /// The joints, then the modal coordinates of the flexible links.
     q_rad: &'f [f64],
     q_ref_rad: &'f [f64],
     motor_rad: &'f [f64],
@@ -236,6 +250,102 @@ impl Drop for ArmLogger<'_> {
     }
 }
 
+/// Points drawn along a bent link's centre line.
+pub(crate) const BEAM_POINTS: usize = 17;
+
+/// Colour of a bent link's centre line.
+const BEAM_COLOR: [u8; 4] = [240, 140, 30, 255];
+/// Colours of the tip of a flexible arm: where it is, and where straight links would
+/// put it.
+const TIP_COLOR: [u8; 4] = [230, 40, 40, 255];
+const STRAIGHT_TIP_COLOR: [u8; 4] = [150, 150, 160, 160];
+
+/// The link frames of an arm at drawn coordinates: the rigid kinematics, or, when some
+/// links bend, the flexible kinematics of [`longreach_arm::flex`] (whose child frames
+/// ride on the deflected ends), written into the same [`Kin`] poses.
+#[derive(Debug, Clone)]
+pub(crate) struct Shape {
+    dynamics: FastDynamics,
+    /// World pose of every link after [`Shape::at`] (`rot`, `origin`, `axis`).
+    pub(crate) kin: Kin,
+    flex: Option<(FlexDynamics, FlexKin)>,
+    /// The coordinates of the last [`Shape::at`], padded with zero modal coordinates.
+    q: Vec<f64>,
+    /// Joint axes in their child link frames.
+    axes: Vec<Vector3<f64>>,
+    tip_link: usize,
+    tip_r: Vector3<f64>,
+}
+
+impl Shape {
+    pub(crate) fn new(arm: &DrivenArm) -> Self {
+        let dynamics = FastDynamics::new(arm.spec());
+        let kin = dynamics.make_kin();
+        let flex = arm.flex().map(|f| (f.clone(), f.make_kin()));
+        let spec = arm.spec();
+        Self {
+            dynamics,
+            kin,
+            flex,
+            q: vec![0.0; arm.ncoords()],
+            axes: spec.joints.iter().map(|j| j.axis.into_inner()).collect(),
+            tip_link: spec.tip.link,
+            tip_r: spec.tip.link_from_frame.translation.vector,
+        }
+    }
+
+    /// The flexible links (none for a rigid arm).
+    pub(crate) fn flex_links(&self) -> &[FlexLink] {
+        self.flex.as_ref().map_or(&[], |(f, _)| f.flex.as_slice())
+    }
+
+    /// Poses at `q`: the joints, then the flexible links' modal coordinates (missing
+    /// ones are zero: the straight links).
+    pub(crate) fn at(&mut self, q: &[f64]) {
+        let n = self.q.len().min(q.len());
+        self.q.fill(0.0);
+        self.q[..n].copy_from_slice(&q[..n]);
+        match &mut self.flex {
+            None => self.dynamics.kinematics(&self.q, &mut self.kin),
+            Some((f, fk)) => {
+                f.kinematics(&self.q, fk);
+                for i in 1..self.kin.rot.len() {
+                    let (rot, origin) = f.link_pose(fk, i);
+                    self.kin.rot[i] = rot;
+                    self.kin.origin[i] = origin;
+                    self.kin.axis[i] = rot * self.axes[i - 1];
+                }
+            }
+        }
+    }
+
+    /// World position of the tip frame after [`Shape::at`] (on a bent last link, at
+    /// its deflected end), m.
+    pub(crate) fn tip_m(&self) -> Vector3<f64> {
+        match &self.flex {
+            None => tip_of(&self.kin, self.tip_link, &self.tip_r),
+            Some((f, fk)) => f.point(fk, &self.q, self.tip_link, &self.tip_r),
+        }
+    }
+
+    /// [`BEAM_POINTS`] points along the centre line of flexible link `f` after
+    /// [`Shape::at`], in its link frame, from its joint origin to its deflected end, m.
+    pub(crate) fn beam_points(&self, k: usize) -> impl Iterator<Item = [f64; 3]> + '_ {
+        let f = &self.flex_links()[k];
+        let eta = &self.q[f.offset..f.offset + f.ncoords()];
+        (0..BEAM_POINTS).map(move |i| {
+            let x = f.length_m * i as f64 / (BEAM_POINTS - 1) as f64;
+            let p = f.ea * x + f.deflection(eta, x);
+            [p.x, p.y, p.z]
+        })
+    }
+}
+
+/// World position of the point `r` of link `link`'s frame from rigid poses `kin`.
+fn tip_of(kin: &Kin, link: usize, r: &Vector3<f64>) -> Vector3<f64> {
+    kin.origin[link] + kin.rot[link] * r
+}
+
 /// The drawing thread's side of an [`ArmLogger`]: kinematics, rope strips and the
 /// buffered columns.
 #[derive(Debug)]
@@ -243,13 +353,21 @@ struct Drawer {
     sink: Sink,
     arm: DrivenArm,
     layout: Layout,
-    dynamics: FastDynamics,
-    kin: Kin,
+    /// The links at the drawn coordinates (bent when flexible).
+    shape: Shape,
     cols: Columns,
-    /// Kinematics at the commanded angles (for the tip error) and those angles.
-    kin_ref: Kin,
+    /// The links at the commanded angles, straight (for the tip error), and those
+    /// angles.
+    reference: Shape,
     q_ref_rad: Vec<f64>,
     links: Vec<TransformId>,
+    /// Flexible arms: the links straight at the drawn joint angles (for the tip's
+    /// deflection), every bent link's centre line (in its link frame), the tip points
+    /// (deflected, then straight) and the tip's deflection.
+    straight: Option<Shape>,
+    beams: Vec<StripsId>,
+    tip_points: Option<PointsId>,
+    tip_deflection: Option<SeriesId>,
     ropes: StripsId,
     joint_angles: SeriesId,
     motor_angles: SeriesId,
@@ -273,8 +391,7 @@ struct Drawer {
 impl Drawer {
     /// Prepares the channels of `arm`.
     fn new(sink: Sink, arm: DrivenArm, layout: Layout) -> Self {
-        let dynamics = FastDynamics::new(arm.spec());
-        let kin = dynamics.make_kin();
+        let shape = Shape::new(&arm);
         let mut cols = Columns::on_duration(SIM_TIME);
         let links = arm.spec().links[1..]
             .iter()
@@ -329,14 +446,35 @@ impl Drawer {
                 )
             })
             .collect();
-        let kin_ref = dynamics.make_kin();
+        let reference = shape.clone();
+        let bent = !shape.flex_links().is_empty();
+        let beams = shape
+            .flex_links()
+            .iter()
+            .map(|f| {
+                let link = &arm.spec().links[f.link].name;
+                cols.strips(format!("/world/arm/{link}/beam"), 0.006 * scale_m)
+            })
+            .collect();
+        let (straight, tip_points, tip_deflection) = if bent {
+            (
+                Some(shape.clone()),
+                Some(cols.points("/world/tip", 0.012 * scale_m)),
+                Some(cols.series("/series/tip/deflection_m")),
+            )
+        } else {
+            (None, None, None)
+        };
         Self {
             sink,
             arm,
             layout,
-            dynamics,
-            kin,
-            kin_ref,
+            shape,
+            reference,
+            straight,
+            beams,
+            tip_points,
+            tip_deflection,
             q_ref_rad: Vec::new(),
             cols,
             links,
@@ -362,99 +500,7 @@ impl Drawer {
             "view coordinates",
             s.log_static("/world", &ViewCoordinates::RIGHT_HAND_Z_UP()),
         );
-        let spec = self.arm.spec();
-        // Every link's URDF visuals and the pulleys on its joint axis, one static row
-        // per link (one batch per shape kind): a handful of chunks for the whole arm.
-        let mut shapes: Vec<LinkShapes> = vec![LinkShapes::default(); spec.links.len()];
-        let mut mesh_warned = false;
-        for (link, shapes) in spec.links.iter().zip(shapes.iter_mut()) {
-            for v in &link.visuals {
-                // The visual's pose in the link frame goes into the shape itself.
-                let t = v.link_from_visual.translation.vector;
-                let q = v.link_from_visual.rotation;
-                let rot = RotationQuat::from(quat(&q));
-                let color = v.rgba.map_or(Color::from_rgb(170, 170, 180), |c| {
-                    let b = |x: f64| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
-                    Color::from_unmultiplied_rgba(b(c[0]), b(c[1]), b(c[2]), b(c[3]))
-                });
-                match &v.geometry {
-                    Geometry::Box { size_m } => shapes.boxes.push((
-                        [size_m.x as f32, size_m.y as f32, size_m.z as f32],
-                        point(t),
-                        rot,
-                        color,
-                    )),
-                    Geometry::Cylinder { radius_m, length_m } => shapes.cylinders.push((
-                        *length_m as f32,
-                        *radius_m as f32,
-                        point(t),
-                        rot,
-                        color,
-                    )),
-                    // Rerun's capsule starts at its translation; URDF's is centred.
-                    Geometry::Capsule { radius_m, length_m } => shapes.capsules.push((
-                        *length_m as f32,
-                        *radius_m as f32,
-                        point(t + q * Vector3::new(0.0, 0.0, -0.5 * length_m)),
-                        rot,
-                        color,
-                    )),
-                    Geometry::Sphere { radius_m } => {
-                        shapes.spheres.push((*radius_m as f32, point(t), color));
-                    }
-                    Geometry::Mesh { filename, .. } => {
-                        if !mesh_warned {
-                            mesh_warned = true;
-                            eprintln!(
-                                "rerun: mesh visual `{filename}` of link `{}` is not drawn (only box, cylinder, \
-                                 capsule and sphere visuals are); the run goes on",
-                                link.name
-                            );
-                        }
-                    }
-                }
-            }
-        }
-        // Pulleys: every pulley on a joint axis, in the child link's frame (whose
-        // origin is the joint origin).
-        for (j, joint) in spec.joints.iter().enumerate() {
-            let mut radii = Vec::new();
-            for p in self.arm.pairs() {
-                if p.spec.joint == j {
-                    radii.push(p.spec.joint_radius_m);
-                }
-                radii.extend(
-                    p.spec
-                        .route
-                        .iter()
-                        .filter(|r| r.joint == Some(j))
-                        .map(|r| r.radius_m),
-                );
-            }
-            let axis = joint.axis.into_inner();
-            let rot = UnitQuaternion::rotation_between(&Vector3::z(), &axis).unwrap_or_else(|| {
-                UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
-            });
-            let width = 0.02 * self.scale_m;
-            let n = radii.len();
-            for (i, r) in radii.iter().enumerate() {
-                let c = axis * (i as f64 - 0.5 * (n as f64 - 1.0)) * 1.5 * width;
-                shapes[joint.child_link].cylinders.push((
-                    width as f32,
-                    *r as f32,
-                    point(c),
-                    RotationQuat::from(quat(&rot)),
-                    Color::from_rgb(120, 120, 130),
-                ));
-            }
-        }
-        for (link, shapes) in spec.links.iter().zip(&shapes) {
-            let path = format!("/world/arm/{}", link.name);
-            let archetypes = shapes.archetypes();
-            if !archetypes.is_empty() {
-                rec.report(&path, s.log_static(path.as_str(), &archetypes));
-            }
-        }
+        log_links(rec, &self.arm, "/world/arm", self.scale_m, None);
         let np = self.arm.pairs().len();
         rec.report(
             "/world/motors",
@@ -513,13 +559,17 @@ impl Drawer {
     fn draw(&mut self, v: &[f64]) {
         let st = self.layout.frame(v);
         self.cols.frame_at_s(st.time_s);
-        self.dynamics.kinematics(st.q_rad, &mut self.kin);
+        self.shape.at(st.q_rad);
         for (i, id) in self.links.iter().enumerate() {
-            let r = Rotation3::from_matrix_unchecked(self.kin.rot[i + 1]);
+            let r = Rotation3::from_matrix_unchecked(self.shape.kin.rot[i + 1]);
             let q = UnitQuaternion::from_rotation_matrix(&r);
-            let o = self.kin.origin[i + 1];
+            let o = self.shape.kin.origin[i + 1];
             self.cols
                 .push_pose(*id, [o.x, o.y, o.z], [q.i, q.j, q.k, q.w]);
+        }
+        for (k, id) in self.beams.iter().enumerate() {
+            self.cols
+                .push_strips(*id, [(self.shape.beam_points(k), BEAM_COLOR)]);
         }
         // Strips of this frame: consecutive spans of the same colour are one strip (an
         // ideal pair is one strip per rope side; relay friction splits it where the
@@ -565,7 +615,10 @@ impl Drawer {
         self.cols.push_strips(self.ropes, strips);
         self.cols.push_group(
             self.joint_angles,
-            st.q_rad.iter().chain(st.q_ref_rad).copied(),
+            st.q_rad[..self.layout.joints]
+                .iter()
+                .chain(st.q_ref_rad)
+                .copied(),
         );
         self.cols.push_group(
             self.motor_angles,
@@ -576,19 +629,27 @@ impl Drawer {
         self.cols
             .push_group(self.tensions, st.tensions_n.iter().copied());
         if self.q_ref_rad != st.q_ref_rad {
-            self.dynamics.kinematics(st.q_ref_rad, &mut self.kin_ref);
+            self.reference.at(st.q_ref_rad);
             self.q_ref_rad.clear();
             self.q_ref_rad.extend_from_slice(st.q_ref_rad);
         }
-        let tip = self.tip_m(&self.kin);
-        let err = (tip - self.tip_m(&self.kin_ref)).norm();
+        let tip = self.shape.tip_m();
+        let err = (tip - self.reference.tip_m()).norm();
         self.cols.push(self.tip_error, err);
-    }
-
-    /// World position of the arm's tip frame from kinematics `kin`, m.
-    fn tip_m(&self, kin: &Kin) -> Vector3<f64> {
-        let tip = &self.arm.spec().tip;
-        kin.origin[tip.link] + kin.rot[tip.link] * tip.link_from_frame.translation.vector
+        if let (Some(straight), Some(points), Some(deflection)) =
+            (&mut self.straight, self.tip_points, self.tip_deflection)
+        {
+            straight.at(&st.q_rad[..self.layout.joints]);
+            let rigid = straight.tip_m();
+            self.cols.push_points(
+                points,
+                [
+                    ([tip.x, tip.y, tip.z], TIP_COLOR),
+                    ([rigid.x, rigid.y, rigid.z], STRAIGHT_TIP_COLOR),
+                ],
+            );
+            self.cols.push(deflection, (tip - rigid).norm());
+        }
     }
 
     /// World points of rope `sign` (+1 / -1) of pair `p` into `self.points_m`: motor
@@ -597,7 +658,11 @@ impl Drawer {
     fn rope_points(&mut self, p: usize, sign: f64) {
         let centre = |&(joint, radius_m): &(Option<usize>, f64)| match joint {
             None => (self.motor_points_m[p], Vector3::z(), radius_m),
-            Some(j) => (self.kin.origin[j + 1], self.kin.axis[j + 1], radius_m),
+            Some(j) => (
+                self.shape.kin.origin[j + 1],
+                self.shape.kin.axis[j + 1],
+                radius_m,
+            ),
         };
         let pulleys = &self.rope_pulleys[p];
         let n = pulleys.len();
@@ -619,6 +684,114 @@ impl Drawer {
             points.push([pt.x, pt.y, pt.z]);
         }
         self.points_m = points;
+    }
+}
+
+/// Logs the static scene of every link of `arm` under `<root>/<link>`: its URDF visuals
+/// (coloured `tint` instead of their own colours when given) and the pulleys on its
+/// joint axis, one static row per link (one batch per shape kind).
+pub(crate) fn log_links(
+    rec: &Sink,
+    arm: &DrivenArm,
+    root: &str,
+    scale_m: f64,
+    tint: Option<Color>,
+) {
+    let s = rec.stream();
+    let spec = arm.spec();
+    // Every link's URDF visuals and the pulleys on its joint axis, one static row
+    // per link (one batch per shape kind): a handful of chunks for the whole arm.
+    let mut shapes: Vec<LinkShapes> = vec![LinkShapes::default(); spec.links.len()];
+    let mut mesh_warned = false;
+    for (link, shapes) in spec.links.iter().zip(shapes.iter_mut()) {
+        for v in &link.visuals {
+            // The visual's pose in the link frame goes into the shape itself.
+            let t = v.link_from_visual.translation.vector;
+            let q = v.link_from_visual.rotation;
+            let rot = RotationQuat::from(quat(&q));
+            let color = tint.unwrap_or_else(|| {
+                v.rgba.map_or(Color::from_rgb(170, 170, 180), |c| {
+                    let b = |x: f64| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
+                    Color::from_unmultiplied_rgba(b(c[0]), b(c[1]), b(c[2]), b(c[3]))
+                })
+            });
+            match &v.geometry {
+                Geometry::Box { size_m } => shapes.boxes.push((
+                    [size_m.x as f32, size_m.y as f32, size_m.z as f32],
+                    point(t),
+                    rot,
+                    color,
+                )),
+                Geometry::Cylinder { radius_m, length_m } => shapes.cylinders.push((
+                    *length_m as f32,
+                    *radius_m as f32,
+                    point(t),
+                    rot,
+                    color,
+                )),
+                // Rerun's capsule starts at its translation; URDF's is centred.
+                Geometry::Capsule { radius_m, length_m } => shapes.capsules.push((
+                    *length_m as f32,
+                    *radius_m as f32,
+                    point(t + q * Vector3::new(0.0, 0.0, -0.5 * length_m)),
+                    rot,
+                    color,
+                )),
+                Geometry::Sphere { radius_m } => {
+                    shapes.spheres.push((*radius_m as f32, point(t), color));
+                }
+                Geometry::Mesh { filename, .. } => {
+                    if !mesh_warned {
+                        mesh_warned = true;
+                        eprintln!(
+                                "rerun: mesh visual `{filename}` of link `{}` is not drawn (only box, cylinder, \
+                                 capsule and sphere visuals are); the run goes on",
+                                link.name
+                            );
+                    }
+                }
+            }
+        }
+    }
+    // Pulleys: every pulley on a joint axis, in the child link's frame (whose
+    // origin is the joint origin).
+    for (j, joint) in spec.joints.iter().enumerate() {
+        let mut radii = Vec::new();
+        for p in arm.pairs() {
+            if p.spec.joint == j {
+                radii.push(p.spec.joint_radius_m);
+            }
+            radii.extend(
+                p.spec
+                    .route
+                    .iter()
+                    .filter(|r| r.joint == Some(j))
+                    .map(|r| r.radius_m),
+            );
+        }
+        let axis = joint.axis.into_inner();
+        let rot = UnitQuaternion::rotation_between(&Vector3::z(), &axis).unwrap_or_else(|| {
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
+        });
+        let width = 0.02 * scale_m;
+        let n = radii.len();
+        for (i, r) in radii.iter().enumerate() {
+            let c = axis * (i as f64 - 0.5 * (n as f64 - 1.0)) * 1.5 * width;
+            shapes[joint.child_link].cylinders.push((
+                width as f32,
+                *r as f32,
+                point(c),
+                RotationQuat::from(quat(&rot)),
+                Color::from_rgb(120, 120, 130),
+            ));
+        }
+    }
+    for (link, shapes) in spec.links.iter().zip(&shapes) {
+        let path = format!("{root}/{}", link.name);
+        let archetypes = shapes.archetypes();
+        if !archetypes.is_empty() {
+            rec.report(&path, s.log_static(path.as_str(), &archetypes));
+        }
     }
 }
 
@@ -710,10 +883,50 @@ mod tests {
             let q: Vec<f64> = (0..arm.spec().ndofs())
                 .map(|j| 0.3 * ((k * 7 + j * 3) as f64).sin())
                 .collect();
-            logger.dynamics.kinematics(&q, &mut logger.kin);
-            let d = (logger.tip_m(&logger.kin) - arm.tip_m(&q).unwrap()).norm();
+            logger.shape.at(&q);
+            let d = (logger.shape.tip_m() - arm.tip_m(&q).unwrap()).norm();
             assert!(d < 1e-12, "pose {k}: {d} m");
             assert!(arm.tip_m(&q).unwrap().norm() > 1.0);
+        }
+    }
+
+    #[test]
+    fn a_bent_link_is_drawn_through_its_deflected_shape_to_the_deflected_tip() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../scenarios/flex_dyneema2_base_step.toml");
+        let arm = longreach_arm::scenario::load(&path).unwrap().arm;
+        let n = arm.njoints();
+        // The links start bent under gravity.
+        let st = arm.initial_state();
+        assert_eq!(st.q_rad.len(), arm.ncoords());
+        let mut shape = Shape::new(&arm);
+        let mut straight = shape.clone();
+        shape.at(&st.q_rad);
+        straight.at(&st.q_rad[..n]);
+        let tip = shape.tip_m();
+        assert!((tip - arm.tip_m(&st.q_rad).unwrap()).norm() < 1e-12);
+        let deflection = (tip - straight.tip_m()).norm();
+        let expected = (arm.tip_m(&st.q_rad).unwrap() - arm.tip_m(&st.q_rad[..n]).unwrap()).norm();
+        assert!(deflection > 1e-3, "{deflection} m");
+        assert!((deflection - expected).abs() < 1e-12);
+        assert_eq!(shape.flex_links().len(), 5);
+        for (k, f) in shape.flex_links().iter().enumerate() {
+            let pts: Vec<[f64; 3]> = shape.beam_points(k).collect();
+            assert_eq!(pts.len(), BEAM_POINTS);
+            assert!(Vector3::from(pts[0]).norm() == 0.0, "clamped at its joint");
+            let end = Vector3::from(pts[BEAM_POINTS - 1]);
+            let world = shape.kin.origin[f.link] + shape.kin.rot[f.link] * end;
+            if f.link == arm.spec().tip.link {
+                // The last link's beam ends at the tip.
+                assert!((world - tip).norm() < 1e-12, "{}", (world - tip).norm());
+            } else {
+                // Its end carries the child joint: the next link's origin.
+                let child = shape.kin.origin[f.link + 1];
+                assert!((world - child).norm() < 1e-12, "{}", (world - child).norm());
+            }
+            // Bent: the end is off the straight axis (sag under gravity).
+            let off = (end - f.ea * end.dot(&f.ea)).norm();
+            assert!(off > 1e-5, "link {}: {off} m", f.link);
         }
     }
 

@@ -8,7 +8,8 @@ use rerun::SerializedComponentColumn;
 use std::time::{Duration, Instant};
 
 use rerun::{
-    Color, LineStrip3D, LineStrips3D, Quaternion, Scalars, SeriesLines, TimeColumn, Transform3D,
+    Color, LineStrip3D, LineStrips3D, Points3D, Quaternion, Scalars, SeriesLines, TimeColumn,
+    Transform3D,
 };
 
 use crate::Sink;
@@ -52,6 +53,9 @@ pub struct TransformId(usize);
 /// Handle of a line-strip channel in [`Columns`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct StripsId(usize);
+/// Handle of a channel of coloured points in [`Columns`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PointsId(usize);
 /// Handle of a channel of strip colours (strips logged once, static) in [`Columns`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ColorsId(usize);
@@ -98,9 +102,13 @@ const SEND_INTERVAL: Duration = Duration::from_millis(250);
 pub struct Columns {
     timeline: &'static str,
     index: Index,
+    /// A second timeline of the same frames, in seconds ([`Columns::also_on_duration`]).
+    second: Option<(&'static str, Vec<f64>)>,
     series: Vec<Series>,
     poses: Vec<(String, Vec<[f32; 3]>, Vec<[f32; 4]>)>,
     strips: Vec<Strips>,
+    /// Points: the same layout as strips of one point each.
+    points: Vec<Strips>,
     /// `(entity, colours per frame, colours)` of strips whose geometry is static.
     colors: Vec<(String, Vec<usize>, Vec<[u8; 4]>)>,
     last_send: Instant,
@@ -122,9 +130,11 @@ impl Columns {
         Self {
             timeline,
             index,
+            second: None,
             series: Vec::new(),
             poses: Vec::new(),
             strips: Vec::new(),
+            points: Vec::new(),
             colors: Vec::new(),
             last_send: Instant::now(),
             names_sent: false,
@@ -174,11 +184,38 @@ impl Columns {
         StripsId(self.strips.len() - 1)
     }
 
+    /// Adds a channel of coloured points of `radius_m` at `entity`.
+    pub fn points(&mut self, entity: impl Into<String>, radius_m: f64) -> PointsId {
+        self.points.push(Strips {
+            entity: entity.into(),
+            radius_m: radius_m as f32,
+            counts: Vec::new(),
+            lengths: Vec::new(),
+            points: Vec::new(),
+            colors: Vec::new(),
+        });
+        PointsId(self.points.len() - 1)
+    }
+
     /// Adds a channel of the colours of the line strips at `entity`, whose geometry is
     /// logged once (static): a frame costs a colour per strip instead of its points.
     pub fn strip_colors(&mut self, entity: impl Into<String>) -> ColorsId {
         self.colors.push((entity.into(), Vec::new(), Vec::new()));
         ColorsId(self.colors.len() - 1)
+    }
+
+    /// The same channels, their frames also on the duration timeline `timeline` (give
+    /// each frame its time there with [`Columns::also_at_s`]).
+    pub fn also_on_duration(mut self, timeline: &'static str) -> Self {
+        self.second = Some((timeline, Vec::new()));
+        self
+    }
+
+    /// The current frame's time on the second timeline, s.
+    pub fn also_at_s(&mut self, time_s: f64) {
+        if let Some((_, t)) = &mut self.second {
+            t.push(time_s);
+        }
     }
 
     /// Starts a frame at `time_s` (duration timelines).
@@ -261,6 +298,21 @@ impl Columns {
         s.counts.push(n);
     }
 
+    /// The points of channel `id` in the current frame, each with its colour.
+    pub fn push_points(
+        &mut self,
+        id: PointsId,
+        points: impl IntoIterator<Item = ([f64; 3], [u8; 4])>,
+    ) {
+        let s = &mut self.points[id.0];
+        let before = s.points.len();
+        for (p, color) in points {
+            s.points.push(p.map(|v| v as f32));
+            s.colors.push(color);
+        }
+        s.counts.push(s.points.len() - before);
+    }
+
     /// The colours of the strips of channel `id` in the current frame, in their order.
     pub fn push_colors(&mut self, id: ColorsId, colors: impl IntoIterator<Item = [u8; 4]>) {
         let (_, counts, all) = &mut self.colors[id.0];
@@ -269,11 +321,15 @@ impl Columns {
         counts.push(all.len() - before);
     }
 
-    fn time_column(&self) -> TimeColumn {
-        match &self.index {
+    fn time_columns(&self) -> Vec<TimeColumn> {
+        let mut out = vec![match &self.index {
             Index::DurationS(t) => TimeColumn::new_duration_secs(self.timeline, t.clone()),
             Index::Sequence(t) => TimeColumn::new_sequence(self.timeline, t.clone()),
+        }];
+        if let Some((name, t)) = &self.second {
+            out.push(TimeColumn::new_duration_secs(*name, t.clone()));
         }
+        out
     }
 
     /// [`Columns::flush`] when a quarter of a second (wall clock) has passed since the
@@ -299,6 +355,9 @@ impl Columns {
             Index::DurationS(t) => t.clear(),
             Index::Sequence(t) => t.clear(),
         }
+        if let Some((_, t)) = &mut self.second {
+            t.clear();
+        }
         for s in &mut self.series {
             s.values.clear();
         }
@@ -306,7 +365,7 @@ impl Columns {
             t.clear();
             q.clear();
         }
-        for s in &mut self.strips {
+        for s in self.strips.iter_mut().chain(&mut self.points) {
             s.counts.clear();
             s.lengths.clear();
             s.points.clear();
@@ -333,6 +392,15 @@ impl Columns {
                     ),
                 );
             }
+            for s in &self.points {
+                rec.report(
+                    &s.entity,
+                    stream.log_static(
+                        s.entity.as_str(),
+                        &Points3D::update_fields().with_radii([s.radius_m]),
+                    ),
+                );
+            }
             for s in &self.series {
                 if let Some(names) = &s.names {
                     rec.report(
@@ -345,7 +413,14 @@ impl Columns {
                 }
             }
         }
-        let time = self.time_column();
+        let time = self.time_columns();
+        if time.iter().any(|t| t.num_rows() != n) {
+            rec.report(
+                self.timeline,
+                Err::<(), _>(format!("a second timeline missed frames ({n} frames)")),
+            );
+            return;
+        }
         // Sends one channel's columns as a chunk, or reports why it cannot (once).
         let send = |entity: &str, frames: usize, columns: Result<Vec<_>, String>| {
             let sent = if frames == n {
@@ -400,6 +475,21 @@ impl Columns {
                 cols.map(Iterator::collect).map_err(err),
             );
         }
+        for s in &self.points {
+            let cols = Points3D::update_fields()
+                .with_positions(s.points.iter().copied())
+                .with_colors(
+                    s.colors
+                        .iter()
+                        .map(|c| Color::from_unmultiplied_rgba(c[0], c[1], c[2], c[3])),
+                )
+                .columns(s.counts.iter().copied());
+            send(
+                &s.entity,
+                s.counts.len(),
+                cols.map(Iterator::collect).map_err(err),
+            );
+        }
         for (entity, counts, colors) in &self.colors {
             let cols = LineStrips3D::update_fields()
                 .with_colors(
@@ -423,7 +513,7 @@ impl Columns {
 /// through a map lookup, cost as much as serialising the data.
 fn time_ordered_chunk(
     entity: &str,
-    time: &TimeColumn,
+    time: &[TimeColumn],
     columns: Vec<SerializedComponentColumn>,
 ) -> Result<Chunk, rerun::log::ChunkError> {
     let id = ChunkId::new();
@@ -431,8 +521,10 @@ fn time_ordered_chunk(
         id,
         entity.into(),
         Some(true),
-        row_ids_after(id, time.num_rows()),
-        std::iter::once((*time.timeline().name(), time.clone())).collect(),
+        row_ids_after(id, time.first().map_or(0, TimeColumn::num_rows)),
+        time.iter()
+            .map(|t| (*t.timeline().name(), t.clone()))
+            .collect(),
         columns.into_iter().collect(),
     )
 }

@@ -121,51 +121,55 @@ pub fn log_comparison(
     let stream = rec.stream();
     let mut top = vec![Tabs::new(run_views).into()];
     if let Some(d) = diagnosis {
-        let mut md = format!(
-            "# Diagnosis of {}\n\nbaseline NRMSE {:.4} (noise floor {:.4})\n\n| rank | effect | NRMSE | score (dBIC) | explains | decisive |\n|---|---|---|---|---|---|\n",
-            d.dataset, d.baseline.nrmse, d.baseline.noise_floor_nrmse
-        );
-        for (k, c) in d.candidates.iter().enumerate() {
-            md.push_str(&format!(
-                "| {} | {} | {:.4} | {:.1} | {:.0}% | {} |\n",
-                k + 1,
-                c.effect,
-                c.nrmse,
-                c.score,
-                100.0 * c.explained.clamp(0.0, 1.0),
-                c.decisive
-            ));
-        }
-        md.push_str(&format!(
-            "\n**missing effect:** {}\n\n{}\n",
-            d.missing_effect.as_deref().unwrap_or("none found"),
-            d.explanation
-        ));
-        rec.report(
-            "/diagnose/ranking",
-            stream.log_static("/diagnose/ranking", &TextDocument::from_markdown(md)),
-        );
-        let bars: Vec<f64> = std::iter::once(d.baseline.nrmse)
-            .chain(d.candidates.iter().map(|c| c.nrmse))
-            .collect();
-        rec.report(
-            "/diagnose/nrmse",
-            stream.log_static("/diagnose/nrmse", &BarChart::new(bars)),
-        );
-        top.push(
-            Vertical::new([
-                TextDocumentView::new("Candidates")
-                    .with_origin("/diagnose/ranking")
-                    .into(),
-                BarChartView::new("NRMSE: baseline, then candidates")
-                    .with_origin("/diagnose/nrmse")
-                    .into(),
-            ])
-            .into(),
-        );
+        top.push(log_diagnosis(rec, d).into());
     }
     let bp = Blueprint::new(Horizontal::new(top));
     rec.report("blueprint", bp.send(stream, BlueprintActivation::default()));
+}
+
+/// Logs the ranking of a diagnosis (`/diagnose/ranking`, `/diagnose/nrmse`); the views
+/// that show it.
+pub(crate) fn log_diagnosis(rec: &Recorder, d: &Diagnosis) -> Vertical {
+    let stream = rec.stream();
+    let mut md = format!(
+        "# Diagnosis of {}\n\nbaseline NRMSE {:.4} (noise floor {:.4})\n\n| rank | effect | NRMSE | score (dBIC) | explains | decisive |\n|---|---|---|---|---|---|\n",
+        d.dataset, d.baseline.nrmse, d.baseline.noise_floor_nrmse
+    );
+    for (k, c) in d.candidates.iter().enumerate() {
+        md.push_str(&format!(
+            "| {} | {} | {:.4} | {:.1} | {:.0}% | {} |\n",
+            k + 1,
+            c.effect,
+            c.nrmse,
+            c.score,
+            100.0 * c.explained.clamp(0.0, 1.0),
+            c.decisive
+        ));
+    }
+    md.push_str(&format!(
+        "\n**missing effect:** {}\n\n{}\n",
+        d.missing_effect.as_deref().unwrap_or("none found"),
+        d.explanation
+    ));
+    rec.report(
+        "/diagnose/ranking",
+        stream.log_static("/diagnose/ranking", &TextDocument::from_markdown(md)),
+    );
+    let bars: Vec<f64> = std::iter::once(d.baseline.nrmse)
+        .chain(d.candidates.iter().map(|c| c.nrmse))
+        .collect();
+    rec.report(
+        "/diagnose/nrmse",
+        stream.log_static("/diagnose/nrmse", &BarChart::new(bars)),
+    );
+    Vertical::new([
+        TextDocumentView::new("Candidates")
+            .with_origin("/diagnose/ranking")
+            .into(),
+        BarChartView::new("NRMSE: baseline, then candidates")
+            .with_origin("/diagnose/nrmse")
+            .into(),
+    ])
 }
 
 /// Gain and phase plots side by side (on [`FREQUENCY_TIMELINE`]): views of `origin`

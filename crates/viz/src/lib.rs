@@ -10,22 +10,26 @@
 //!   (`send_columns`), so logging costs a few pushes per frame instead of one
 //!   `log` call per entity per frame.
 //! - [`RateGate`] picks the frames to log at `--rerun-hz` of simulated time.
-//! - [`arm`], [`rig`] and [`ident`] log the arm runs, the rig's frequency responses
-//!   and the comparisons with measurements; each sends a default blueprint.
+//! - [`arm`], [`rig`], [`ident`] and [`modes`] log the arm runs, the rig's frequency
+//!   responses, the comparisons with measurements and the arm's modes, and
+//!   [`arm_compare`] the measured and model arms of an arm dataset; each sends a
+//!   default blueprint.
 //!
 //! Entity paths are listed in `docs/rerun.md`. Logging only reads simulation states:
 //! it cannot change a result (tested bitwise in `tests/cli/rerun_cli.rs`).
 
 pub mod arm;
+pub mod arm_compare;
 mod columns;
 mod error;
 pub mod ident;
+pub mod modes;
 mod recorder;
 pub mod rig;
 mod rrd_file;
 mod worker;
 
-pub use columns::{ColorsId, Columns, RateGate, SeriesId, StripsId, TransformId};
+pub use columns::{ColorsId, Columns, PointsId, RateGate, SeriesId, StripsId, TransformId};
 pub use error::VizError;
 pub use recorder::{Closing, Recorder, Sink, Target, DEFAULT_HZ, SDK_VERSION};
 

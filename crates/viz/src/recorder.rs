@@ -257,6 +257,21 @@ impl Recorder {
         }
     }
 
+    /// Closes a recording that has nothing to show because the command failed before
+    /// logging (e.g. `modes` on an arm it cannot linearise): a file is removed instead
+    /// of left half-named; a viewer's stream is closed as by [`Recorder::finish`].
+    pub fn discard(mut self) {
+        match self.file.take() {
+            Some((tmp, _)) if self.sink.is_enabled() => {
+                self.sink.stream.disconnect();
+                let _ = std::fs::remove_file(&tmp);
+            }
+            _ => {
+                self.finish();
+            }
+        }
+    }
+
     /// Flushes everything; for a file, moves the finished recording to its name and
     /// returns that path. A viewer that did not answer is reported once.
     pub fn finish(self) -> Option<PathBuf> {

@@ -35,7 +35,7 @@ use crate::dataset::{
 };
 use crate::error::IdentError;
 use crate::model::Model;
-use crate::plant::{ArmPlant, Channels, Plant};
+use crate::plant::{ArmPlant, ArmPoses, Channels, Plant};
 use crate::sensors::Encoder;
 
 /// Length of the windows the error is cut into, s.
@@ -296,6 +296,25 @@ pub fn simulate_arm(ds: &Dataset, model: &Model) -> Result<Vec<Channels>, IdentE
     (0..am.runs.len())
         .into_par_iter()
         .map(|r| plant.simulate(&model.plant_params(r)?, r))
+        .collect()
+}
+
+/// [`simulate_arm`], and the model arm of every run with its coordinates at every
+/// sample (to draw it).
+pub fn simulate_arm_poses(
+    ds: &Dataset,
+    model: &Model,
+) -> Result<Vec<(Channels, ArmPoses)>, IdentError> {
+    use rayon::prelude::*;
+    let DatasetKind::ArmMoves(am) = &ds.kind else {
+        return Err(IdentError::NotAnArm {
+            kind: ds.kind.name(),
+        });
+    };
+    let plant = ArmPlant::new(am);
+    (0..am.runs.len())
+        .into_par_iter()
+        .map(|r| plant.simulate_with_poses(&model.plant_params(r)?, r))
         .collect()
 }
 

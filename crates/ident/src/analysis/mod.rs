@@ -30,8 +30,8 @@ mod shape;
 mod signature;
 
 pub use arm::{
-    arm_dataset, compare_arm, residual_vibration, simulate_arm, ArmComparison, ArmWhere,
-    ChannelError, Figures, MoveFigures, ARM_WINDOW_S,
+    arm_dataset, compare_arm, residual_vibration, simulate_arm, simulate_arm_poses, ArmComparison,
+    ArmWhere, ChannelError, Figures, MoveFigures, ARM_WINDOW_S,
 };
 pub use compare::{
     compare, Comparison, FrequencyError, ResidualChecks, RunError, RunResonance, Where,

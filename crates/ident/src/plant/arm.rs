@@ -290,17 +290,23 @@ fn second_difference(x: &[f64], dt_s: f64) -> Vec<f64> {
 }
 
 /// Simulates the arm `arm` on run `r`: the channels of `r` at its sample times (tip
-/// accelerations by second differences of the sampled tip positions).
+/// accelerations by second differences of the sampled tip positions). With `poses`,
+/// the generalised coordinates (joints, then the flexible links' modes) of every
+/// sample go into it too.
 pub(crate) fn simulate_run(
     arm: &DrivenArm,
     r: &ArmRun,
     substeps: usize,
+    mut poses: Option<&mut Vec<Vec<f64>>>,
 ) -> Result<Vec<Vec<f64>>, IdentError> {
     let n = r.time_s.len();
     let mut out: Vec<Vec<f64>> = r.channels.iter().map(|_| Vec::with_capacity(n)).collect();
     let mut tip: [Vec<f64>; 3] = Default::default();
     let mut st = arm.initial_state();
     record(arm, &st, r, &mut tip, &mut out);
+    if let Some(p) = poses.as_deref_mut() {
+        p.push(st.q_rad.clone());
+    }
     for _ in 1..n {
         for _ in 0..substeps {
             arm.step(&mut st).map_err(|e| IdentError::ArmSimulation {
@@ -310,6 +316,9 @@ pub(crate) fn simulate_run(
             })?;
         }
         record(arm, &st, r, &mut tip, &mut out);
+        if let Some(p) = poses.as_deref_mut() {
+            p.push(st.q_rad.clone());
+        }
     }
     let dt = r.dt_s();
     for (c, o) in r.channels.iter().zip(out.iter_mut()) {
@@ -346,9 +355,41 @@ impl Plant for ArmPlant<'_> {
     /// The compared channel ([`ARM_STACKED`]), then every measured channel of the run
     /// in the run's order (the motor angles first).
     fn simulate(&self, params: &PlantParams, run: usize) -> Result<Channels, IdentError> {
+        self.simulate_posed(params, run, None).map(|(c, _)| c)
+    }
+}
+
+/// The model arm of a run and its coordinates at every sample, for drawing it.
+#[derive(Debug, Clone)]
+pub struct ArmPoses {
+    /// The arm the run was simulated with.
+    pub arm: DrivenArm,
+    /// Generalised coordinates at every sample of the run: the joints (rad), then the
+    /// flexible links' modal coordinates (m).
+    pub q: Vec<Vec<f64>>,
+}
+
+impl ArmPlant<'_> {
+    /// [`Plant::simulate`], and the arm with its coordinates at every sample.
+    pub fn simulate_with_poses(
+        &self,
+        params: &PlantParams,
+        run: usize,
+    ) -> Result<(Channels, ArmPoses), IdentError> {
+        let mut q = Vec::with_capacity(self.ds.runs[run].time_s.len());
+        let (channels, arm) = self.simulate_posed(params, run, Some(&mut q))?;
+        Ok((channels, ArmPoses { arm, q }))
+    }
+
+    fn simulate_posed(
+        &self,
+        params: &PlantParams,
+        run: usize,
+        poses: Option<&mut Vec<Vec<f64>>>,
+    ) -> Result<(Channels, DrivenArm), IdentError> {
         let r = &self.ds.runs[run];
         let (arm, k) = self.arm_for(params, run)?;
-        let values = simulate_run(&arm, r, k)?;
+        let values = simulate_run(&arm, r, k, poses)?;
         let mut channels = Channels(
             r.channels
                 .iter()
@@ -368,6 +409,6 @@ impl Plant for ArmPlant<'_> {
                 values: stacked,
             },
         );
-        Ok(channels)
+        Ok((channels, arm))
     }
 }

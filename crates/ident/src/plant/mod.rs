@@ -29,7 +29,7 @@ use crate::sim;
 
 mod arm;
 
-pub use arm::{stack, stacking, substeps_for, ArmPlant, ARM_MAX_STEP_S, ARM_STACKED};
+pub use arm::{stack, stacking, substeps_for, ArmPlant, ArmPoses, ARM_MAX_STEP_S, ARM_STACKED};
 
 /// One simulated channel of a run, named as the dataset's column.
 #[derive(Debug, Clone, PartialEq)]
