@@ -274,7 +274,7 @@ impl Recorder {
 
     /// Flushes everything; for a file, moves the finished recording to its name and
     /// returns that path. A viewer that did not answer is reported once.
-    pub fn finish(self) -> Option<PathBuf> {
+    pub fn finish(mut self) -> Option<PathBuf> {
         if !self.sink.is_enabled() {
             return None;
         }
@@ -289,7 +289,7 @@ impl Recorder {
                 // Disconnecting (or dropping) would wait for the viewer forever: leave
                 // the stream to the process exit instead.
                 let warned = self.sink.warn_once();
-                std::mem::forget(self.sink);
+                std::mem::forget(self);
                 if !warned {
                     eprintln!(
                         "rerun: the viewer at {addr} did not take the recording ({e}); is it running \
@@ -302,7 +302,7 @@ impl Recorder {
             }
         }
         self.sink.stream.disconnect();
-        let (tmp, final_path) = self.file?;
+        let (tmp, final_path) = self.file.take()?;
         // Renaming over an earlier recording makes ext4 (auto_da_alloc) allocate the
         // new file's blocks at once: 26 ms for a 12 MB Bode recording, measured. The
         // old one is removed first (a failure to remove shows in the rename's error).
@@ -317,6 +317,18 @@ impl Recorder {
                 );
                 None
             }
+        }
+    }
+}
+
+/// A recorder dropped without [`Recorder::finish`] or [`Recorder::discard`] belongs to a
+/// command that failed after it started (a bad dataset, a non-finite result): its file
+/// is removed, never left half-written beside the name it would have had.
+impl Drop for Recorder {
+    fn drop(&mut self) {
+        if let Some((tmp, _)) = self.file.take() {
+            self.sink.stream.disconnect();
+            let _ = std::fs::remove_file(&tmp);
         }
     }
 }
@@ -413,6 +425,26 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("--rerun-hz"), "{e}");
+    }
+
+    #[test]
+    fn a_recorder_dropped_unfinished_leaves_no_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("failed.rrd");
+        let r =
+            Recorder::start("t", &Target::Save(Some(path.clone())), Path::new("x"), 30.0).unwrap();
+        r.report("test", Ok::<(), String>(()));
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            1,
+            "its .partial"
+        );
+        drop(r);
+        let left: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert!(left.is_empty(), "left behind: {left:?}");
     }
 
     #[test]
