@@ -345,6 +345,32 @@ fn print_comparison(c: &Comparison) {
         ]);
     }
     println!("{t}");
+    if c.runs.iter().any(|r| r.channels.len() > 1) {
+        let mut ch = Table::new();
+        ch.set_header(vec![
+            "run",
+            "channel",
+            "NRMSE",
+            "noise floor",
+            "RMS error",
+            "noise sigma",
+            "x floor",
+        ]);
+        for r in &c.runs {
+            for e in &r.channels {
+                ch.add_row(vec![
+                    r.run.clone(),
+                    e.channel.clone(),
+                    format!("{:.4}", e.nrmse),
+                    format!("{:.4}", e.noise_floor_nrmse),
+                    format!("{} {}", fmt(e.rms_error), e.unit),
+                    format!("{} {}", fmt(e.noise_sigma), e.unit),
+                    format!("{:.2}", e.ratio),
+                ]);
+            }
+        }
+        println!("{ch}");
+    }
     println!(
         "overall NRMSE {:.4} (noise floor {:.4}, {:.2}x)",
         c.nrmse,
@@ -697,6 +723,27 @@ fn write_report(
             r.noise_floor_nrmse,
             100.0 * r.share
         ));
+    }
+    if c.runs.iter().any(|r| r.channels.len() > 1) {
+        md.push_str(
+            "\nEvery channel (each enters the NRMSE above over its own noise):\n\n| run | channel | NRMSE | floor | RMS error | noise sigma | x floor |\n|---|---|---|---|---|---|---|\n",
+        );
+        for r in &c.runs {
+            for e in &r.channels {
+                md.push_str(&format!(
+                    "| {} | {} | {:.4} | {:.4} | {} {} | {} {} | {:.2} |\n",
+                    r.run,
+                    e.channel,
+                    e.nrmse,
+                    e.noise_floor_nrmse,
+                    fmt(e.rms_error),
+                    e.unit,
+                    fmt(e.noise_sigma),
+                    e.unit,
+                    e.ratio
+                ));
+            }
+        }
     }
     if let Some((d, _)) = diag {
         md.push_str(&format!(
