@@ -295,8 +295,17 @@ pub fn run_fit(a: &FitArgs) -> Result<ExitCode> {
         f.nrmse_before / f.nrmse.max(f64::MIN_POSITIVE) * (f.ssr / prep.n_samples() as f64).sqrt();
     let rms_after = (f.ssr / prep.n_samples() as f64).sqrt();
     println!(
-        "NRMSE before {:.5}, after {:.5} (noise floor {:.5}); RMS error (eq. 7) before {} {unit}, after {} {unit}",
-        f.nrmse_before, f.nrmse, f.noise_floor, fmt(rms_before), fmt(rms_after)
+        "NRMSE before {:.5}, after {:.5} (noise floor {:.5}); RMS error (eq. 7) before {} {unit}, after {} {unit}{}",
+        f.nrmse_before,
+        f.nrmse,
+        f.noise_floor,
+        fmt(rms_before),
+        fmt(rms_after),
+        if prep.has_channels() {
+            " (every channel stacked, each over its noise, on the output angle's scale)"
+        } else {
+            ""
+        }
     );
     if let Some(p) = &a.data.json {
         write_json(
