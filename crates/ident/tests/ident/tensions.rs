@@ -2,22 +2,20 @@
 //! comparison and the diagnosis, each over its own noise (`Prepared`, docs/models.md,
 //! "Channels").
 //!
-//! The relay friction's parameters with and without the tensions, on the same data
-//! (`synth` at 1 ms, the loop at 2.5 ms, seed 11; `relay_friction_recovery_study`
-//! below prints the table):
+//! Relay friction fitted with and without the tensions on the same data (`synth` at
+//! 1 ms, seed 11; `relay_friction_recovery_study` below prints it, docs/models.md
+//! "Channels"): coefficient, inertia.
 //!
-//! | hidden (coefficient, inertia) | with tensions | without |
-//! |---|---|---|
-//! | 0.01, 2e-5 kg*m^2 | 0.0099998 (-0.002%), 2.48e-5 (+24%) | 0.0100033 (+0.03%), 2.68e-5 (+34%) |
-//! | 0.01, 1e-4 kg*m^2 | 0.0100040 (+0.04%), 1.10e-4 (+10%) | 0.0100215 (+0.2%), 1.19e-4 (+19%) |
+//! | hidden | loop step | with tensions | without |
+//! |---|---|---|---|
+//! | 0.01, 2e-5 | 2.5 ms | -0.00%, +23.9% | +0.03%, +33.9% |
+//! | | 1.25 ms | -0.02%, -0.3% | +0.00%, +3.8% |
+//! | 0.01, 1e-4 | 2.5 ms | +0.04%, +10.1% | +0.22%, +19.3% |
+//! | | 1.25 ms | -0.03%, +0.8% | -0.01%, +1.9% |
 //!
-//! The coefficient is recovered either way; the inertia, which the output angle sees
-//! only through the rope's motion, shows in the tension difference across the relays
-//! and the tensions halve its error. What is left is the loop's own step error: its
-//! relay pulleys step by backward Euler (first order) at 2.5 ms. Simulated at 1.25 ms
-//! (`Prepared::with_substeps(.., 4)`) the fit with tensions gives 1.025e-4 (+2.5%) on
-//! data made at 0.5 ms, 1.009e-4 at 0.625 ms; on data made at the loop's own 2.5 ms,
-//! 1.019e-4 (+1.9%).
+//! The inertia shows in the tension difference across the relays; at the loop's
+//! default 2.5 ms what is left is its step error (backward-Euler relay pulleys), so
+//! the recovery test fits at 1.25 ms.
 
 use longreach_drive::effects;
 use longreach_ident::analysis::{compare, fit_model, Prepared};
