@@ -260,3 +260,27 @@ fn relay_friction_recovery_study() {
         }
     }
 }
+
+/// A tension column without measurable noise (a ramp: its second differences are all
+/// zero) cannot be weighted: refused, naming the dataset, the run and the column.
+#[test]
+fn a_tension_channel_without_noise_is_refused_by_name() {
+    let mut ds = Dataset::load(example("example_sweep_control")).unwrap();
+    let longreach_ident::DatasetKind::SineSweep(sw) = &mut ds.kind else {
+        panic!("a sweep");
+    };
+    let run = &mut sw.runs[1];
+    run.tension_out_2_n = Some(
+        (0..run.time_s.len())
+            .map(|i| 100.0 + 0.5 * i as f64)
+            .collect(),
+    );
+    let e = Prepared::new(&ds).unwrap_err().to_string();
+    assert!(
+        e.contains("example_sweep_control")
+            && e.contains("run_02")
+            && e.contains("tension_out_2_n")
+            && e.contains("noise"),
+        "{e}"
+    );
+}
