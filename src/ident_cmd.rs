@@ -295,8 +295,17 @@ pub fn run_fit(a: &FitArgs) -> Result<ExitCode> {
         f.nrmse_before / f.nrmse.max(f64::MIN_POSITIVE) * (f.ssr / prep.n_samples() as f64).sqrt();
     let rms_after = (f.ssr / prep.n_samples() as f64).sqrt();
     println!(
-        "NRMSE before {:.5}, after {:.5} (noise floor {:.5}); RMS error (eq. 7) before {} {unit}, after {} {unit}",
-        f.nrmse_before, f.nrmse, f.noise_floor, fmt(rms_before), fmt(rms_after)
+        "NRMSE before {:.5}, after {:.5} (noise floor {:.5}); RMS error (eq. 7) before {} {unit}, after {} {unit}{}",
+        f.nrmse_before,
+        f.nrmse,
+        f.noise_floor,
+        fmt(rms_before),
+        fmt(rms_after),
+        if prep.has_channels() {
+            " (every channel stacked, each over its noise, on the output angle's scale)"
+        } else {
+            ""
+        }
     );
     if let Some(p) = &a.data.json {
         write_json(
@@ -345,6 +354,32 @@ fn print_comparison(c: &Comparison) {
         ]);
     }
     println!("{t}");
+    if c.runs.iter().any(|r| r.channels.len() > 1) {
+        let mut ch = Table::new();
+        ch.set_header(vec![
+            "run",
+            "channel",
+            "NRMSE",
+            "noise floor",
+            "RMS error",
+            "noise sigma",
+            "x floor",
+        ]);
+        for r in &c.runs {
+            for e in &r.channels {
+                ch.add_row(vec![
+                    r.run.clone(),
+                    e.channel.clone(),
+                    format!("{:.4}", e.nrmse),
+                    format!("{:.4}", e.noise_floor_nrmse),
+                    format!("{} {}", fmt(e.rms_error), e.unit),
+                    format!("{} {}", fmt(e.noise_sigma), e.unit),
+                    format!("{:.2}", e.ratio),
+                ]);
+            }
+        }
+        println!("{ch}");
+    }
     println!(
         "overall NRMSE {:.4} (noise floor {:.4}, {:.2}x)",
         c.nrmse,
@@ -717,6 +752,27 @@ fn write_report(
             r.noise_floor_nrmse,
             100.0 * r.share
         ));
+    }
+    if c.runs.iter().any(|r| r.channels.len() > 1) {
+        md.push_str(
+            "\nEvery channel (each enters the NRMSE above over its own noise):\n\n| run | channel | NRMSE | floor | RMS error | noise sigma | x floor |\n|---|---|---|---|---|---|---|\n",
+        );
+        for r in &c.runs {
+            for e in &r.channels {
+                md.push_str(&format!(
+                    "| {} | {} | {:.4} | {:.4} | {} {} | {} {} | {:.2} |\n",
+                    r.run,
+                    e.channel,
+                    e.nrmse,
+                    e.noise_floor_nrmse,
+                    fmt(e.rms_error),
+                    e.unit,
+                    fmt(e.noise_sigma),
+                    e.unit,
+                    e.ratio
+                ));
+            }
+        }
     }
     if let Some((d, _)) = diag {
         md.push_str(&format!(

@@ -106,6 +106,44 @@ fn compare_relax_control_with_report() {
     assert!(rep.join("residual_spectrum.png").exists());
 }
 
+/// A sweep with tension channels (the example control): `compare` reports every
+/// channel of every run against its own floor, in the table, the JSON and the report;
+/// each is at its floor with the catalog model.
+#[test]
+fn compare_sweep_reports_every_channel_at_its_floor() {
+    let dir = tempfile::tempdir().unwrap();
+    let rep = dir.path().join("rep");
+    let cj = dir.path().join("c.json");
+    let (ok, out, err) = longreach(&[
+        "compare",
+        example("example_sweep_control").to_str().unwrap(),
+        "--json",
+        cj.to_str().unwrap(),
+        "--report",
+        rep.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(
+        out.contains("tension_out_2_n") && out.contains("x floor"),
+        "{out}"
+    );
+    let c = json(&cj);
+    let runs = c["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 5);
+    for r in runs {
+        let ch = r["channels"].as_array().unwrap();
+        assert_eq!(ch.len(), 5, "{r}");
+        assert_eq!(ch[0]["channel"], "output_angle_rad");
+        assert_eq!(ch[1]["unit"], "N");
+        for e in ch {
+            let ratio = e["ratio"].as_f64().unwrap();
+            assert!((0.9..1.1).contains(&ratio), "{e}");
+        }
+    }
+    let md = std::fs::read_to_string(rep.join("report.md")).unwrap();
+    assert!(md.contains("| run_01 | tension_in_1_n |"), "{md}");
+}
+
 #[test]
 fn broken_dataset_fails_clearly_and_writes_nothing() {
     let dir = tempfile::tempdir().unwrap();

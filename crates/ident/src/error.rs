@@ -65,10 +65,30 @@ pub enum IdentError {
         dir: String,
         /// The run's name.
         run: String,
-        /// The compared channel (`output_angle_rad`, `tension_n`).
+        /// The channel (`output_angle_rad`, `tension_n`, a tension column).
         channel: &'static str,
         /// Analysed samples.
         samples: usize,
+    },
+    /// A further measured channel (a sweep's rope tension) shows no noise to weight it
+    /// by: its second differences are zero at most samples.
+    #[error("{dir}: run {run}: column {channel}: its noise cannot be estimated (the second differences of the measurement are zero at most samples), so it cannot be weighted against the other channels; fix: record the channel at its sensor's full resolution, or leave the column out (docs/measurements.md)")]
+    NoNoise {
+        /// The dataset folder.
+        dir: String,
+        /// The run's name.
+        run: String,
+        /// The channel (column name).
+        channel: &'static str,
+    },
+    /// The plant did not return a channel the run measured (a plant that does not
+    /// simulate it).
+    #[error("run {run}: the model's plant gives no {channel}, which the run measured")]
+    MissingChannel {
+        /// The run's name.
+        run: String,
+        /// The channel (column name).
+        channel: &'static str,
     },
     /// A sweep-only computation (the analytic frequency response) was asked of another
     /// kind of dataset.

@@ -13,6 +13,12 @@
 //! criterion is asserted on the rows that ran.
 //! The small version (relaxation, control + extra_retardation) runs by default in
 //! `crates/ident/tests/ident/diagnose_loop.rs`.
+//!
+//! Tension channels: every sweep dataset is written with `synth`'s four tension
+//! channels and diagnosed twice, with them (they enter the fits and the scores, each
+//! over its noise) and with them left out (the output angle alone, as before they
+//! entered); each counts as a dataset of its row. `CONFUSION_TENSIONS=with` or
+//! `=without` runs one of the two.
 
 use longreach_drive::effects::{self, DataKind, Effect, REGISTRY};
 use longreach_ident::analysis::{diagnose, Prepared};
@@ -77,6 +83,7 @@ fn run_case(
     rope: &str,
     hidden: Option<(&'static dyn Effect, &[f64])>,
     seed: u64,
+    variant: usize,
     tensions: bool,
 ) -> Verdict {
     let base = base_model(rope, kind);
@@ -92,8 +99,8 @@ fn run_case(
     match kind {
         DataKind::SineSweep => {
             let mut opt = SweepOptions::paper(rope, seed);
-            opt.tension_channels = tensions;
-            if seed.is_multiple_of(2) {
+            opt.tension_channels = true;
+            if variant.is_multiple_of(2) {
                 opt.runs = [98.0, 196.0, 343.0]
                     .iter()
                     .map(|&t| (t, 3f64.to_radians()))
@@ -113,12 +120,18 @@ fn run_case(
         }
     }
     let ds = Dataset::load(&path).unwrap();
-    let prep = Prepared::new(&ds).unwrap();
+    let mut prep = Prepared::new(&ds).unwrap();
+    if !tensions {
+        for r in &mut prep.runs {
+            r.channels.clear();
+        }
+    }
     let t0 = std::time::Instant::now();
     let (d, base_fit, _) = diagnose(&prep, &base).unwrap();
     println!(
-        "{kind:?} {rope} hidden={:?} seed={seed} -> missing={:?} ranking={:?} ({:.1} s)",
+        "{kind:?} {rope} hidden={:?} seed={seed} tensions={} -> missing={:?} ranking={:?} ({:.1} s)",
         hidden.map(|h| (h.0.name(), h.1.to_vec())),
+        prep.has_channels(),
         d.missing_effect,
         d.candidates
             .iter()
@@ -153,6 +166,20 @@ struct Verdict {
     missing: Option<String>,
     /// The first-ranked candidate.
     first: Option<String>,
+}
+
+/// The tension variants a dataset of `kind` is diagnosed in: sweeps with and without
+/// their tension channels (`CONFUSION_TENSIONS=with|without` for one), relaxation as
+/// it is.
+fn variants(kind: DataKind) -> &'static [bool] {
+    if kind != DataKind::SineSweep {
+        return &[true];
+    }
+    match std::env::var("CONFUSION_TENSIONS").as_deref() {
+        Ok("with") => &[true],
+        Ok("without") => &[false],
+        _ => &[true, false],
+    }
 }
 
 #[test]
@@ -194,9 +221,14 @@ fn confusion_matrix_full() {
             }
             for seed in 0..2u64 {
                 let s = 100 + i as u64 * 10 + seed;
-                control.1 += 1;
-                if run_case(kind, rope, None, s, seed == 0).missing.is_none() {
-                    control.0 += 1;
+                for &t in variants(kind) {
+                    control.1 += 1;
+                    if run_case(kind, rope, None, s, seed as usize, t)
+                        .missing
+                        .is_none()
+                    {
+                        control.0 += 1;
+                    }
                 }
             }
         }
@@ -216,10 +248,12 @@ fn confusion_matrix_full() {
                         continue;
                     }
                     let s = 1000 + i as u64 * 10 + j as u64;
-                    n += 1;
-                    let v = run_case(kind, rope, Some((e, v)), s, j == 0);
-                    decisive += usize::from(v.missing.as_deref() == Some(e.name()));
-                    first += usize::from(v.first.as_deref() == Some(e.name()));
+                    for &t in variants(kind) {
+                        n += 1;
+                        let v = run_case(kind, rope, Some((e, v)), s, j, t);
+                        decisive += usize::from(v.missing.as_deref() == Some(e.name()));
+                        first += usize::from(v.first.as_deref() == Some(e.name()));
+                    }
                 }
             }
             rows.push((kind, e.name(), decisive, first, n));

@@ -12,6 +12,25 @@ use crate::metrics;
 use crate::model::Model;
 use crate::sim;
 
+/// The error of one measured channel of one run (over the analysed samples).
+#[derive(Debug, Clone, Serialize)]
+pub struct RunChannelError {
+    /// Column name (`output_angle_rad`, `tension_in_1_n`, ...).
+    pub channel: String,
+    /// Unit of the channel (`rad`, `N`).
+    pub unit: &'static str,
+    /// RMS error, in the channel's unit.
+    pub rms_error: f64,
+    /// Noise standard deviation (the floor), in the channel's unit.
+    pub noise_sigma: f64,
+    /// NRMSE of the channel.
+    pub nrmse: f64,
+    /// The floor on the NRMSE scale.
+    pub noise_floor_nrmse: f64,
+    /// `rms_error / noise_sigma`: 1 at the floor.
+    pub ratio: f64,
+}
+
 /// NRMSE of one run.
 #[derive(Debug, Clone, Serialize)]
 pub struct RunError {
@@ -21,12 +40,15 @@ pub struct RunError {
     pub mean_tension_n: Option<f64>,
     /// Input amplitude [rad] (sweeps).
     pub amplitude_rad: Option<f64>,
-    /// NRMSE of the compared channel.
+    /// NRMSE of the compared channels, stacked (each over its noise; the primary
+    /// channel's alone when the run measured no other).
     pub nrmse: f64,
     /// Noise floor of this run on the NRMSE scale.
     pub noise_floor_nrmse: f64,
     /// Share of the dataset's squared error.
     pub share: f64,
+    /// Every compared channel on its own, the primary first.
+    pub channels: Vec<RunChannelError>,
 }
 
 /// Measured vs model frequency response at one test frequency of one run.
@@ -144,19 +166,36 @@ pub fn compare(
     sims: &[Vec<f64>],
 ) -> Result<Comparison, IdentError> {
     let sums = prep.sums(sims);
+    let channel_sums = prep.channel_sums(sims);
     let total_sse: f64 = sums.iter().map(|s| s.0).sum::<f64>().max(f64::MIN_POSITIVE);
     let (nrmse, floor) = prep.overall(sims);
     let runs: Vec<RunError> = prep
         .runs
         .iter()
         .zip(&sums)
-        .map(|(r, s)| RunError {
+        .zip(&channel_sums)
+        .map(|((r, s), ch)| RunError {
             run: r.name.clone(),
             mean_tension_n: r.mean_tension_n,
             amplitude_rad: r.amplitude_rad,
             nrmse: (s.0 / s.1).sqrt(),
             noise_floor_nrmse: r.noise_sigma * (s.2 as f64 / s.1).sqrt(),
             share: s.0 / total_sse,
+            channels: ch
+                .iter()
+                .map(|c| {
+                    let rms_error = (c.sse / c.n.max(1) as f64).sqrt();
+                    RunChannelError {
+                        channel: c.name.to_string(),
+                        unit: unit_of(c.name),
+                        rms_error,
+                        noise_sigma: c.noise_sigma,
+                        nrmse: c.nrmse(),
+                        noise_floor_nrmse: c.floor_nrmse(),
+                        ratio: rms_error / c.noise_sigma,
+                    }
+                })
+                .collect(),
         })
         .collect();
     let mut frequency = Vec::new();
@@ -176,7 +215,7 @@ pub fn compare(
             let mut a = 0;
             while a < n {
                 let b = (a + w).min(n);
-                let sse: f64 = (a..b).map(|i| (y[i] - run.measured[i]).powi(2)).sum();
+                let sse: f64 = (a..b).map(|i| prep.squared_error(ri, y, i)).sum();
                 places.push(Where {
                     run: run.name.clone(),
                     frequency_hz: None,
@@ -196,7 +235,7 @@ pub fn compare(
             let ym = dft(&run.measured[a..b], run.dt_s, f);
             let yy = dft(&y[a..b], run.dt_s, f);
             let (hm, hy) = (ym / x, yy / x);
-            let sse: f64 = (a..b).map(|i| (y[i] - run.measured[i]).powi(2)).sum();
+            let sse: f64 = (a..b).map(|i| prep.squared_error(ri, y, i)).sum();
             let gm = 20.0 * hm.norm().log10();
             let gy = 20.0 * hy.norm().log10();
             let pm = hm.arg().to_degrees();
@@ -244,9 +283,16 @@ pub fn compare(
     places.sort_by(|a, b| b.share.total_cmp(&a.share));
     // worst windows of 2 s across runs
     let mut windows = Vec::new();
-    for (run, y) in prep.runs.iter().zip(sims) {
+    for (ri, (run, y)) in prep.runs.iter().zip(sims).enumerate() {
+        // the stacked error of each sample (its square: every channel's, weighted)
         let err: Vec<f64> = (0..run.measured.len())
-            .map(|i| y[i] - run.measured[i])
+            .map(|i| {
+                if run.channels.is_empty() {
+                    y[i] - run.measured[i]
+                } else {
+                    prep.squared_error(ri, y, i).sqrt()
+                }
+            })
             .collect();
         let all: f64 = err.iter().map(|v| v * v).sum();
         let scale = all / total_sse.max(f64::MIN_POSITIVE);
@@ -270,8 +316,9 @@ pub fn compare(
     }
     windows.sort_by(|a, b| b.share.total_cmp(&a.share));
     windows.truncate(5);
-    // residual checks over the analysed samples
-    let res = prep.residuals_of(sims);
+    // residual checks over the analysed samples of the primary channel (the time series
+    // of the output angle: whiteness, correlations, harmonics)
+    let res = prep.primary_residuals_of(sims);
     let mut inp = Vec::new();
     let mut vel = Vec::new();
     let mut time = Vec::new();
@@ -331,6 +378,17 @@ pub fn compare(
         residual,
         resonance,
     })
+}
+
+/// Unit of a channel, from its column name.
+fn unit_of(name: &str) -> &'static str {
+    if name.ends_with("_rad") {
+        "rad"
+    } else if name.ends_with("_n") {
+        "N"
+    } else {
+        "1"
+    }
 }
 
 /// Sine-phase single-bin DFT (see [`metrics::single_bin_dft`]) without allocation checks.

@@ -199,11 +199,7 @@ pub fn diagnose(
     let cmp = compare(prep, &base.model, &base.sims)?;
     let n = prep.n_samples() as f64;
     let k_base = base.model.fit_specs(prep.runs.len()).len();
-    let ssr_floor = prep
-        .runs
-        .iter()
-        .map(|r| r.noise_sigma.powi(2) * r.idx.len() as f64)
-        .sum::<f64>();
+    let ssr_floor = prep.floor_ssr();
     let effects: Vec<_> = REGISTRY
         .iter()
         .copied()

@@ -3,9 +3,10 @@
 //!
 //! Split by job:
 //!
-//! * `prepare.rs`: a dataset readied for the rest ([`Prepared`]: the compared channel,
-//!   analysed samples and noise floor of every run, [`RunData`]) and a model simulated
-//!   on its runs ([`Prepared::simulate`]);
+//! * `prepare.rs`: a dataset readied for the rest ([`Prepared`]: the compared channels
+//!   (a sweep's output angle and the rope tensions it recorded, each weighted by its
+//!   noise), analysed samples and noise floor of every run, [`RunData`]) and a model
+//!   simulated on its runs ([`Prepared::simulate`]);
 //! * `fit.rs`: a model's free parameters fitted to the data ([`fit_model`]: a starting
 //!   grid, for sweeps refined on the analytic frequency response, then least squares on
 //!   the simulation) or only screened at their starting values ([`screen_model`]);
@@ -34,13 +35,16 @@ pub use arm::{
     ArmWhere, ChannelError, Figures, MoveFigures, ARM_WINDOW_S,
 };
 pub use compare::{
-    compare, Comparison, FrequencyError, ResidualChecks, RunError, RunResonance, Where,
+    compare, Comparison, FrequencyError, ResidualChecks, RunChannelError, RunError, RunResonance,
+    Where,
 };
 pub use diagnose::{
     diagnose, BaselineSummary, Candidate, Diagnosis, FLOOR_MARGIN, MIN_EXPLAINED, MIN_SCORE,
     MIN_SCORE_GAP, REFINE_MARGIN,
 };
 pub use fit::{fit_model, fit_model_from, screen_model, Fitted, Start, DEAR_EVALUATIONS_PER_PARAM};
-pub use prepare::{noise_sigma_second_difference, Prepared, RunData};
+pub use prepare::{
+    noise_sigma_second_difference, primary_name, ChannelData, ChannelSums, Prepared, RunData,
+};
 pub use shape::{refine_shape, KnotChoice, ShapeRefinement, KNOT_COUNTS};
 pub use signature::{describe, signatures, Equivalent, Signature, SignatureKind};

@@ -1,5 +1,16 @@
-//! A dataset prepared for simulation and comparison: the compared channel, analysed
-//! samples and noise floor of every run, and a model simulated on the runs.
+//! A dataset prepared for simulation and comparison: the compared channels, analysed
+//! samples and noise floors of every run, and a model simulated on the runs.
+//!
+//! Every channel a run measured enters: the primary one (a sweep's output angle, a
+//! specimen's tension, an arm's [`crate::plant::ARM_STACKED`]) and, for sweeps, the rope
+//! tensions the run recorded ([`RunData::channels`]). As the arm plant stacks its
+//! channels, each channel's residual is divided by its own noise standard deviation
+//! and the results are concatenated, so the stacked residual is dimensionless and white
+//! noise gives every channel the same weight per sample; the stack is then multiplied
+//! by the primary channel's noise (the primary's weight is exactly 1), which keeps a
+//! dataset with the primary channel alone bit for bit where it was, and keeps sums of
+//! squares, RMS errors and the noise floor in the primary's unit (the floor's SSR is
+//! `sigma_primary^2` per stacked residual).
 
 use longreach_drive::effects::DataKind;
 use rayon::prelude::*;
@@ -12,7 +23,19 @@ use crate::plant::{plant_for, Channels, Plant};
 use crate::sensors::ENCODER_RESOLUTION_RAD;
 use crate::sim;
 
-/// One run prepared for comparison: the compared channel and the analysed samples.
+/// A further measured channel of a run (a sweep's rope tension), compared with the
+/// plant's channel of the same name over the run's analysed samples.
+#[derive(Debug, Clone)]
+pub struct ChannelData {
+    /// Column name (`tension_in_1_n`, ...).
+    pub name: &'static str,
+    /// Measured values, all samples.
+    pub values: Vec<f64>,
+    /// Noise standard deviation (second differences of the measurement) [N].
+    pub noise_sigma: f64,
+}
+
+/// One run prepared for comparison: the compared channels and the analysed samples.
 #[derive(Debug, Clone)]
 pub struct RunData {
     /// Run name (file stem).
@@ -33,6 +56,82 @@ pub struct RunData {
     pub amplitude_rad: Option<f64>,
     /// Noise standard deviation of the compared channel (the noise floor) [rad or N].
     pub noise_sigma: f64,
+    /// The further measured channels, in the order they are stacked after the primary
+    /// one (a sweep's tensions: `tension_in_1_n`, `tension_in_2_n`, `tension_out_1_n`,
+    /// `tension_out_2_n`, those recorded); empty for the other kinds. A caller may clear
+    /// them to compare the primary channel alone.
+    pub channels: Vec<ChannelData>,
+}
+
+impl RunData {
+    /// Weight of stacked channel `k` (0: the primary, `k >= 1`: `channels[k - 1]`):
+    /// the primary's noise over the channel's.
+    pub fn weight(&self, k: usize) -> f64 {
+        if k == 0 {
+            1.0
+        } else {
+            self.noise_sigma / self.channels[k - 1].noise_sigma
+        }
+    }
+
+    /// Name of stacked channel `k`.
+    pub fn channel_name(&self, k: usize, primary: &'static str) -> &'static str {
+        if k == 0 {
+            primary
+        } else {
+            self.channels[k - 1].name
+        }
+    }
+
+    /// Measured values of stacked channel `k`.
+    pub fn channel_values(&self, k: usize) -> &[f64] {
+        if k == 0 {
+            &self.measured
+        } else {
+            &self.channels[k - 1].values
+        }
+    }
+
+    /// Noise standard deviation of stacked channel `k`, in its own unit.
+    pub fn channel_sigma(&self, k: usize) -> f64 {
+        if k == 0 {
+            self.noise_sigma
+        } else {
+            self.channels[k - 1].noise_sigma
+        }
+    }
+
+    /// Number of stacked channels (the primary and [`Self::channels`]).
+    pub fn n_channels(&self) -> usize {
+        1 + self.channels.len()
+    }
+}
+
+/// Per-channel sums of one run ([`Prepared::channel_sums`]), in the channel's own unit.
+#[derive(Debug, Clone, Copy)]
+pub struct ChannelSums {
+    /// Column name.
+    pub name: &'static str,
+    /// Sum of squared errors over the analysed samples.
+    pub sse: f64,
+    /// Sum of squares about the measured mean over the analysed samples.
+    pub sst: f64,
+    /// Analysed samples.
+    pub n: usize,
+    /// Noise standard deviation.
+    pub noise_sigma: f64,
+}
+
+impl ChannelSums {
+    /// NRMSE `sqrt(SSE/SST)`.
+    pub fn nrmse(&self) -> f64 {
+        (self.sse / self.sst).sqrt()
+    }
+
+    /// The noise floor on the NRMSE scale, `sigma sqrt(n/SST)`.
+    pub fn floor_nrmse(&self) -> f64 {
+        self.noise_sigma * (self.n as f64 / self.sst).sqrt()
+    }
 }
 
 impl RunData {
@@ -49,6 +148,7 @@ impl RunData {
             mean_tension_n: None,
             amplitude_rad: None,
             noise_sigma: noise_sigma_second_difference(tension_n),
+            channels: Vec::new(),
         }
     }
 }
@@ -65,11 +165,20 @@ pub struct Prepared<'a> {
     /// The plant that reproduces it (sweeps simulated at [`sim::SWEEP_SUBSTEPS`]
     /// sub-steps per sample).
     pub plant: Box<dyn Plant + 'a>,
+    /// Sub-steps per sample of the plant's sweeps.
+    pub substeps: usize,
 }
 
 impl<'a> Prepared<'a> {
     /// Prepares `ds`: analysis windows and noise floors.
     pub fn new(ds: &'a Dataset) -> Result<Self, IdentError> {
+        Self::with_substeps(ds, sim::SWEEP_SUBSTEPS)
+    }
+
+    /// Prepares `ds` with its sweeps simulated at `substeps` sub-steps per sample
+    /// (studies of the simulation's step error; [`Self::new`] uses
+    /// [`sim::SWEEP_SUBSTEPS`]).
+    pub fn with_substeps(ds: &'a Dataset, substeps: usize) -> Result<Self, IdentError> {
         let runs = match &ds.kind {
             DatasetKind::SineSweep(sw) => sw
                 .runs
@@ -94,6 +203,7 @@ impl<'a> Prepared<'a> {
                         amplitude_rad: Some(r.amplitude_rad),
                         // Encoder quantisation: uniform error of one count.
                         noise_sigma: ENCODER_RESOLUTION_RAD / 12f64.sqrt(),
+                        channels: sweep_tensions(r),
                     })
                 })
                 .collect::<Result<Vec<_>, IdentError>>()?,
@@ -127,41 +237,51 @@ impl<'a> Prepared<'a> {
                         mean_tension_n: None,
                         amplitude_rad: None,
                         noise_sigma: 1.0,
+                        channels: Vec::new(),
                     }
                 })
                 .collect(),
         };
         for run in &runs {
             let n = run.idx.len();
-            let first = run.idx.first().map(|&i| run.measured[i]);
-            // Exactly constant (bit for bit): any variation at all gives a number.
-            let varies = first.is_some_and(|f| {
-                run.idx
-                    .iter()
-                    .any(|&i| run.measured[i].to_bits() != f.to_bits())
-            });
-            if !varies {
-                return Err(IdentError::NoVariation {
-                    dir: ds.dir.display().to_string(),
-                    run: run.name.clone(),
-                    channel: match &ds.kind {
-                        DatasetKind::SineSweep(_) => "output_angle_rad",
-                        _ => "tension_n",
-                    },
-                    samples: n,
-                });
+            for k in 0..run.n_channels() {
+                let values = run.channel_values(k);
+                let first = run.idx.first().map(|&i| values[i]);
+                // Exactly constant (bit for bit): any variation at all gives a number.
+                let varies = first
+                    .is_some_and(|f| run.idx.iter().any(|&i| values[i].to_bits() != f.to_bits()));
+                if !varies {
+                    return Err(IdentError::NoVariation {
+                        dir: ds.dir.display().to_string(),
+                        run: run.name.clone(),
+                        channel: run.channel_name(k, primary_name(&ds.kind)),
+                        samples: n,
+                    });
+                }
+                // A further channel is weighted by its noise: it must show some.
+                let sigma = run.channel_sigma(k);
+                if k > 0 && !(sigma > 0.0 && sigma.is_finite()) {
+                    return Err(IdentError::NoNoise {
+                        dir: ds.dir.display().to_string(),
+                        run: run.name.clone(),
+                        channel: run.channel_name(k, primary_name(&ds.kind)),
+                    });
+                }
             }
         }
         Ok(Self {
             ds,
             kind: data_kind(ds),
             runs,
-            plant: plant_for(ds, sim::SWEEP_SUBSTEPS),
+            plant: plant_for(ds, substeps),
+            substeps,
         })
     }
 
-    /// Simulates `model` on every run (in parallel, results in run order); returns the
-    /// compared channel at every sample.
+    /// Simulates `model` on every run (in parallel, results in run order); returns, for
+    /// each run, its stacked channels' simulated values concatenated: the primary
+    /// channel at every sample (`y[..n]`, n samples), then each of
+    /// [`RunData::channels`] (`y[k n..(k + 1) n]` for stacked channel `k`).
     pub fn simulate(&self, model: &Model) -> Result<Vec<Vec<f64>>, IdentError> {
         (0..self.runs.len())
             .into_par_iter()
@@ -169,9 +289,29 @@ impl<'a> Prepared<'a> {
             .collect()
     }
 
-    /// Simulates `model` on run `r`: the compared channel.
+    /// Simulates `model` on run `r`: its stacked channels concatenated, as in
+    /// [`Self::simulate`].
     pub fn simulate_run(&self, model: &Model, r: usize) -> Result<Vec<f64>, IdentError> {
-        Ok(self.simulate_channels(model, r)?.into_primary())
+        let params = model.plant_params(r)?;
+        self.stacked(r, self.plant.simulate(&params, r)?)
+    }
+
+    /// The plant's channels of run `r` in the order of its stacked channels,
+    /// concatenated.
+    fn stacked(&self, r: usize, channels: Channels) -> Result<Vec<f64>, IdentError> {
+        let run = &self.runs[r];
+        if run.channels.is_empty() {
+            return Ok(channels.into_primary());
+        }
+        let mut out = channels.primary().to_vec();
+        for c in &run.channels {
+            let y = channels.get(c.name).ok_or(IdentError::MissingChannel {
+                run: run.name.clone(),
+                channel: c.name,
+            })?;
+            out.extend_from_slice(y);
+        }
+        Ok(out)
     }
 
     /// Simulates `model` on run `r`: every channel the run measured.
@@ -180,8 +320,30 @@ impl<'a> Prepared<'a> {
         self.plant.simulate(&params, r)
     }
 
-    /// Residuals (model - measured) over the analysed samples of every run, concatenated.
+    /// Residuals over the analysed samples of every run, concatenated: run by run, each
+    /// stacked channel's `(model - measured) * weight` ([`RunData::weight`]: the
+    /// primary's unit, 1 for the primary) in turn. `sims` as from [`Self::simulate`].
     pub fn residuals_of(&self, sims: &[Vec<f64>]) -> Vec<f64> {
+        let mut out = Vec::with_capacity(self.n_samples());
+        for (run, y) in self.runs.iter().zip(sims) {
+            let n = run.measured.len();
+            for k in 0..run.n_channels() {
+                let (w, m, y) = (run.weight(k), run.channel_values(k), &y[k * n..]);
+                if k == 0 {
+                    out.extend(run.idx.iter().map(|&i| y[i] - m[i]));
+                } else {
+                    out.extend(run.idx.iter().map(|&i| (y[i] - m[i]) * w));
+                }
+            }
+        }
+        out
+    }
+
+    /// Residuals of the primary channel alone (model - measured), over the analysed
+    /// samples of every run: what the residual checks and signatures look at (time
+    /// series of the output angle). `sims` may hold the primary alone or every stacked
+    /// channel.
+    pub fn primary_residuals_of(&self, sims: &[Vec<f64>]) -> Vec<f64> {
         let mut out = Vec::new();
         for (run, y) in self.runs.iter().zip(sims) {
             out.extend(run.idx.iter().map(|&i| y[i] - run.measured[i]));
@@ -189,17 +351,46 @@ impl<'a> Prepared<'a> {
         out
     }
 
+    /// Squared stacked residual of sample `i` of run `r` (`y` its simulated channels,
+    /// as from [`Self::simulate`]): every stacked channel's, weighted.
+    pub fn squared_error(&self, r: usize, y: &[f64], i: usize) -> f64 {
+        let run = &self.runs[r];
+        let n = run.measured.len();
+        let mut sq = (y[i] - run.measured[i]).powi(2);
+        for (k, c) in run.channels.iter().enumerate() {
+            sq += ((y[(k + 1) * n + i] - c.values[i]) * run.weight(k + 1)).powi(2);
+        }
+        sq
+    }
+
     /// Sum of squared residuals ([`Self::residuals_of`]) of the simulated channels `sims`.
     pub fn ssr(&self, sims: &[Vec<f64>]) -> f64 {
         self.residuals_of(sims).iter().map(|e| e * e).sum()
     }
 
+    /// SSR that noise alone leaves: `sigma_primary^2` per stacked residual.
+    pub fn floor_ssr(&self) -> f64 {
+        self.runs
+            .iter()
+            .map(|r| r.noise_sigma.powi(2) * (r.idx.len() * r.n_channels()) as f64)
+            .sum()
+    }
+
+    /// [`Self::floor_ssr`] of the primary channel alone.
+    pub fn primary_floor_ssr(&self) -> f64 {
+        self.runs
+            .iter()
+            .map(|r| r.noise_sigma.powi(2) * r.idx.len() as f64)
+            .sum()
+    }
+
     /// The error group of every residual of [`Self::residuals_of`], for the fits'
     /// uncertainties ([`crate::fitting::Residuals::error_groups`]): a sweep's analysed
-    /// samples grouped by test frequency, over all runs (the encoder's quantisation error
-    /// is coherent over a frequency step, and runs that see the same signal, such as a
-    /// linear rope at several mean tensions, see the same error). `None` for relaxation
-    /// and cyclic tests, whose tension noise is independent from sample to sample.
+    /// samples grouped by test frequency, over all runs and channels (the encoder's
+    /// quantisation error is coherent over a frequency step, and runs that see the same
+    /// signal, such as a linear rope at several mean tensions, see the same error; a
+    /// step's tensions belong with its angles). `None` for relaxation and cyclic tests,
+    /// whose tension noise is independent from sample to sample.
     pub fn error_groups(&self) -> Option<Vec<usize>> {
         if self.kind != DataKind::SineSweep {
             return None;
@@ -207,15 +398,17 @@ impl<'a> Prepared<'a> {
         let mut freqs: Vec<f64> = Vec::new();
         let mut out = Vec::with_capacity(self.n_samples());
         for run in &self.runs {
-            for &(f, a, b) in &run.segments {
-                let id = freqs
-                    .iter()
-                    .position(|g| g.to_bits() == f.to_bits())
-                    .unwrap_or_else(|| {
-                        freqs.push(f);
-                        freqs.len() - 1
-                    });
-                out.extend(std::iter::repeat_n(id, b - a));
+            for _ in 0..run.n_channels() {
+                for &(f, a, b) in &run.segments {
+                    let id = freqs
+                        .iter()
+                        .position(|g| g.to_bits() == f.to_bits())
+                        .unwrap_or_else(|| {
+                            freqs.push(f);
+                            freqs.len() - 1
+                        });
+                    out.extend(std::iter::repeat_n(id, b - a));
+                }
             }
         }
         Some(out)
@@ -230,39 +423,66 @@ impl<'a> Prepared<'a> {
         if self.kind != DataKind::SineSweep {
             return None;
         }
-        let plant = plant_for(self.ds, 2 * sim::SWEEP_SUBSTEPS);
+        let plant = plant_for(self.ds, 2 * self.substeps);
         Some(
             (0..self.runs.len())
                 .into_par_iter()
-                .map(|r| Ok(plant.simulate(&model.plant_params(r)?, r)?.into_primary()))
+                .map(|r| self.stacked(r, plant.simulate(&model.plant_params(r)?, r)?))
                 .collect(),
         )
     }
 
-    /// Per-run `(SSE, SST, n)` over the analysed samples.
-    pub fn sums(&self, sims: &[Vec<f64>]) -> Vec<(f64, f64, usize)> {
+    /// Per-run, per-stacked-channel sums over the analysed samples, each channel in its
+    /// own unit.
+    pub fn channel_sums(&self, sims: &[Vec<f64>]) -> Vec<Vec<ChannelSums>> {
+        let primary = primary_name(&self.ds.kind);
         self.runs
             .iter()
             .zip(sims)
             .map(|(run, y)| {
-                let n = run.idx.len();
-                let mean = run.idx.iter().map(|&i| run.measured[i]).sum::<f64>() / n.max(1) as f64;
-                let sse = run
-                    .idx
-                    .iter()
-                    .map(|&i| (y[i] - run.measured[i]).powi(2))
-                    .sum();
-                let sst = run
-                    .idx
-                    .iter()
-                    .map(|&i| (run.measured[i] - mean).powi(2))
-                    .sum();
-                (sse, sst, n)
+                let len = run.measured.len();
+                (0..run.n_channels())
+                    .map(|k| {
+                        let (m, y) = (run.channel_values(k), &y[k * len..]);
+                        let n = run.idx.len();
+                        let mean = run.idx.iter().map(|&i| m[i]).sum::<f64>() / n.max(1) as f64;
+                        ChannelSums {
+                            name: run.channel_name(k, primary),
+                            sse: run.idx.iter().map(|&i| (y[i] - m[i]).powi(2)).sum(),
+                            sst: run.idx.iter().map(|&i| (m[i] - mean).powi(2)).sum(),
+                            n,
+                            noise_sigma: run.channel_sigma(k),
+                        }
+                    })
+                    .collect()
             })
             .collect()
     }
 
-    /// Overall NRMSE `sqrt(sum SSE / sum SST)` and the noise floor on the same scale.
+    /// Per-run `(SSE, SST, n)` over the analysed samples of every stacked channel, in
+    /// the primary's unit (each channel's sums times its weight squared; `n` counts
+    /// every stacked residual). For a run with the primary channel alone, its sums.
+    pub fn sums(&self, sims: &[Vec<f64>]) -> Vec<(f64, f64, usize)> {
+        self.runs
+            .iter()
+            .zip(self.channel_sums(sims))
+            .map(|(run, ch)| {
+                ch.iter()
+                    .enumerate()
+                    .fold((0.0, 0.0, 0), |(sse, sst, n), (k, c)| {
+                        if k == 0 {
+                            (c.sse, c.sst, c.n)
+                        } else {
+                            let w2 = run.weight(k).powi(2);
+                            (sse + c.sse * w2, sst + c.sst * w2, n + c.n)
+                        }
+                    })
+            })
+            .collect()
+    }
+
+    /// Overall NRMSE `sqrt(sum SSE / sum SST)` and the noise floor on the same scale,
+    /// over every stacked channel ([`Self::sums`]).
     pub fn overall(&self, sims: &[Vec<f64>]) -> (f64, f64) {
         let sums = self.sums(sims);
         let sse: f64 = sums.iter().map(|s| s.0).sum();
@@ -276,10 +496,46 @@ impl<'a> Prepared<'a> {
         ((sse / sst).sqrt(), (floor / sst).sqrt())
     }
 
-    /// Total analysed samples.
+    /// Total stacked residuals: analysed samples times stacked channels, over the runs
+    /// (the length of [`Self::residuals_of`]).
     pub fn n_samples(&self) -> usize {
-        self.runs.iter().map(|r| r.idx.len()).sum()
+        self.runs.iter().map(|r| r.idx.len() * r.n_channels()).sum()
     }
+
+    /// Whether any run stacks a channel besides the primary one.
+    pub fn has_channels(&self) -> bool {
+        self.runs.iter().any(|r| !r.channels.is_empty())
+    }
+}
+
+/// Name of a dataset kind's primary channel.
+pub fn primary_name(kind: &DatasetKind) -> &'static str {
+    match kind {
+        DatasetKind::SineSweep(_) => "output_angle_rad",
+        DatasetKind::ArmMoves(_) => crate::plant::ARM_STACKED,
+        _ => "tension_n",
+    }
+}
+
+/// The rope tensions a sweep run recorded, each with its noise from the second
+/// differences of the whole run ([`noise_sigma_second_difference`]), in the order the
+/// rig plant returns them.
+fn sweep_tensions(r: &crate::dataset::SweepRun) -> Vec<ChannelData> {
+    [
+        ("tension_in_1_n", &r.tension_in_1_n),
+        ("tension_in_2_n", &r.tension_in_2_n),
+        ("tension_out_1_n", &r.tension_out_1_n),
+        ("tension_out_2_n", &r.tension_out_2_n),
+    ]
+    .into_iter()
+    .filter_map(|(name, v)| {
+        v.as_ref().map(|v| ChannelData {
+            name,
+            values: v.clone(),
+            noise_sigma: noise_sigma_second_difference(v),
+        })
+    })
+    .collect()
 }
 
 fn dt_of(t: &[f64]) -> f64 {

@@ -352,7 +352,7 @@ struct SimOf<'f, 'p, 'a, 't>(&'f TermFit<'p, 'a, 't>);
 
 impl Residuals for SimOf<'_, '_, '_, '_> {
     fn residuals(&self, x: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
-        *out = self.0.b.prep.residuals_of(&self.0.simulate(x)?);
+        *out = self.0.b.prep.primary_residuals_of(&self.0.simulate(x)?);
         Ok(())
     }
 }
@@ -427,11 +427,8 @@ pub fn signatures(
     sims: &[Vec<f64>],
     cmp: &Comparison,
 ) -> Vec<Signature> {
-    let ssr_floor = prep
-        .runs
-        .iter()
-        .map(|r| r.noise_sigma.powi(2) * r.idx.len() as f64)
-        .sum();
+    // the primary channel's: the signatures are the output angle's
+    let ssr_floor = prep.primary_floor_ssr();
     let mut base = Base {
         prep,
         model,

@@ -79,8 +79,16 @@ fn sweep_control_baseline_is_at_the_noise_floor() {
         c.nrmse,
         c.noise_floor_nrmse
     );
-    // the floor is the encoder's q/sqrt(12) over the output's spread
-    assert!(c.noise_floor_nrmse > 0.005 && c.noise_floor_nrmse < 0.02);
+    // the output angle's floor is the encoder's q/sqrt(12) over the output's spread; the
+    // stacked floor (the example's four tensions too, ~0.8 N each over their own
+    // spread) is a little higher: 0.0223 against 0.0103 for the output angle alone
+    assert!(c.noise_floor_nrmse > 0.015 && c.noise_floor_nrmse < 0.03);
+    for r in &c.runs {
+        let angle = &r.channels[0];
+        assert_eq!(angle.channel, "output_angle_rad");
+        assert!(angle.noise_floor_nrmse > 0.005 && angle.noise_floor_nrmse < 0.03);
+        assert_eq!(r.channels.len(), 5);
+    }
     assert_eq!(c.runs.len(), 5);
     let share: f64 = c.runs.iter().map(|r| r.share).sum();
     assert!((share - 1.0).abs() < 1e-9);

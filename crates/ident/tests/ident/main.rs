@@ -15,3 +15,4 @@ mod relay_friction;
 mod sensors;
 mod shapes;
 mod signatures;
+mod tensions;

@@ -1,6 +1,7 @@
 //! `relay_friction` hidden in a synthetic sweep (through the registry, as
 //! `longreach synth --effect relay_friction=C,J` does) is named by `diagnose`, with its
-//! coefficient recovered.
+//! coefficient recovered. The dataset carries `synth`'s four tension channels, which
+//! enter the fits and the scores (each over its noise; `tensions.rs`).
 
 use longreach_drive::effects;
 use longreach_ident::analysis::{diagnose, Prepared};
@@ -46,6 +47,7 @@ fn diagnose_names_relay_friction_and_recovers_the_coefficient() {
         .unwrap();
     let ds = Dataset::load(&path).unwrap();
     let prep = Prepared::new(&ds).unwrap();
+    assert!(prep.runs.iter().all(|r| r.channels.len() == 4));
     let (d, base_fit, _) = diagnose(&prep, &base).unwrap();
     eprintln!(
         "baseline nrmse {:.4} (floor {:.4}); candidates {:?}; missing {:?}\n{}",
@@ -63,9 +65,22 @@ fn diagnose_names_relay_friction_and_recovers_the_coefficient() {
         "{}",
         d.explanation
     );
+    assert_eq!(
+        d.missing_effect.as_deref(),
+        Some("relay_friction"),
+        "{}",
+        d.explanation
+    );
     let c = d.candidates[0].params["coefficient"];
     assert!(
-        (c / COEFFICIENT - 1.0).abs() < 0.2,
+        (c / COEFFICIENT - 1.0).abs() < 0.05,
         "coefficient {c} vs hidden {COEFFICIENT}"
     );
+    // every channel of the winner at its floor
+    for r in &d.comparison.runs {
+        assert_eq!(r.channels.len(), 5);
+    }
+    assert!(d
+        .nrmse_after
+        .is_some_and(|n| n < 1.05 * base_fit.noise_floor));
 }
