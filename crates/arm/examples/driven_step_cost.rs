@@ -61,6 +61,10 @@ fn main() {
         "longreach5 dyneema2 four-element servo, relay friction on",
         &load("arm_dyneema2_base_step_relay_friction.toml"),
     );
+    time(
+        "longreach5 dyneema2 four-element servo, flexible links (2 modes per direction)",
+        &load("flex_dyneema2_base_step.toml"),
+    );
     for n in [3, 6, 12] {
         let arm = anchor_chain(n, LawKind::Elastic, 1e-3).unwrap_or_else(|e| panic!("{e}"));
         time(&format!("chain{n} elastic"), &arm);
