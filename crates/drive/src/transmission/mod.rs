@@ -47,8 +47,11 @@
 //! - [`load`]: passive torques at the joints ([`JointForce`], [`JointLoad`]), what
 //!   effects at the joint site add;
 //! - [`step`]: the joints' interface ([`JointSide`]) and the implicit step
-//!   ([`Drivetrain::step`]) in named stages.
+//!   ([`Drivetrain::step`]) in named stages;
+//! - `free`: coordinates of the joint side no pair touches (bending modes), eliminated
+//!   once per Newton matrix ([`Drivetrain::with_free_coords`]).
 
+mod free;
 pub(crate) mod ideal;
 pub mod load;
 pub mod pair;

@@ -30,6 +30,7 @@
 
 use longreach_rope::PreparedStep;
 
+use super::free::FreeFactor;
 use super::ideal;
 use super::load::JointLoad;
 use super::pair::CompiledPair;
@@ -133,6 +134,9 @@ pub struct Drivetrain {
     /// Every pair has relay friction: chord iterations.
     chord_capable: bool,
     newton_tolerance: f64,
+    /// Coordinates at the end of the joint side's that no pair and no load touches
+    /// ([`Self::with_free_coords`]).
+    free: usize,
 }
 
 /// Motor feed-forward and reference rates of one step, per pair (the plant's
@@ -201,7 +205,46 @@ impl Drivetrain {
             any_friction,
             chord_capable,
             newton_tolerance: tol,
+            free: 0,
         })
+    }
+
+    /// The same drivetrain on a joint side whose last `free` coordinates no pair and no
+    /// joint load touches (the bending modes of flexible links): the step factors their
+    /// block of the Newton matrix once per matrix base and solves the joints' Schur
+    /// complement in each iteration (`free` module; the same update to round-off, at
+    /// the cost of an `(n - free)`-square solve). The joint side's [`JointSide::matrix`]
+    /// must then be positive definite on them. Refused when a pair or a load touches
+    /// one.
+    pub fn with_free_coords(mut self, free: usize) -> Result<Self, DriveError> {
+        let n = self.ndofs;
+        let nj = n.checked_sub(free).ok_or_else(|| DriveError::BadParameter {
+            field: "free coordinates".into(),
+            value: free as f64,
+            reason: format!("more than the {n} coordinates"),
+        })?;
+        let touched = self
+            .pairs
+            .iter()
+            .flat_map(|p| p.nz.iter().copied())
+            .chain(self.loads.iter().map(|l| l.joint))
+            .find(|&k| k >= nj);
+        if let Some(k) = touched {
+            return Err(DriveError::BadTransmission {
+                field: "free coordinates".into(),
+                reason: format!(
+                    "coordinate {k} is driven by a pair or a load: only the last \
+                     coordinates no rope or effect acts on can be free"
+                ),
+            });
+        }
+        self.free = free;
+        Ok(self)
+    }
+
+    /// Coordinates no pair and no load touches (see [`Self::with_free_coords`]).
+    pub fn free_coords(&self) -> usize {
+        self.free
     }
 
     /// Step, s.
@@ -302,6 +345,7 @@ impl Drivetrain {
             dq: vec![0.0; n],
             dth: vec![0.0; np],
             dx: vec![0.0; np],
+            free: (self.free > 0).then(|| FreeFactor::new(n - self.free, self.free)),
             kept: false,
             age: 0,
             chord_rate: f64::INFINITY,
@@ -403,12 +447,16 @@ impl Drivetrain {
                 continue;
             }
             let sv = &mut st.solver;
+            // With free coordinates, the joints' Schur complement (`free` module).
+            let nj = n - self.free;
             let factored = if !refresh {
                 true
+            } else if sv.free.as_ref().is_some_and(|f| !f.ok) {
+                false
             } else if self.any_friction {
-                !singular && lu_in_place(&mut sv.kq, n, &mut sv.perm)
+                !singular && lu_in_place(&mut sv.kq, nj, &mut sv.perm)
             } else {
-                cholesky_in_place(&mut sv.kq, n)
+                cholesky_in_place(&mut sv.kq, nj)
             };
             if !factored {
                 sv.kept = false;
@@ -421,10 +469,16 @@ impl Drivetrain {
                     },
                 });
             }
+            if let Some(ff) = sv.free.as_mut() {
+                ff.reduce(&mut sv.rhs);
+            }
             if self.any_friction {
-                lu_solve(&sv.kq, n, &sv.perm, &mut sv.rhs);
+                lu_solve(&sv.kq, nj, &sv.perm, &mut sv.rhs);
             } else {
-                cholesky_solve(&sv.kq, n, &mut sv.rhs);
+                cholesky_solve(&sv.kq, nj, &mut sv.rhs);
+            }
+            if let Some(ff) = &sv.free {
+                ff.expand(&mut sv.rhs);
             }
             let mut small = true;
             // Largest joint update relative to the tolerance (chord control).
@@ -664,11 +718,21 @@ impl Drivetrain {
             // predicted pose unless the last step's matrix served first).
             *fresh.mbase_done = true;
             joints.matrix(joint_scratch, four_h2, two_h, &mut sv.mbase);
+            if let Some(ff) = sv.free.as_mut() {
+                // The free coordinates' block is factored once per base.
+                ff.ok = ff.factor(&sv.mbase);
+            }
         }
         joints.residual(joint_scratch, &sv.v1, &sv.a1, &mut sv.rhs);
+        // The joints' part of the Newton matrix: all of it, or the Schur complement of
+        // the free coordinates (row-major `nj x nj`).
+        let nj = n - self.free;
         if refresh {
             sv.age = 0;
-            sv.kq.copy_from_slice(&sv.mbase);
+            match &sv.free {
+                None => sv.kq.copy_from_slice(&sv.mbase),
+                Some(ff) => sv.kq[..nj * nj].copy_from_slice(&ff.schur),
+            }
         }
         let mut off = 0;
         for l in &self.loads {
@@ -680,7 +744,7 @@ impl Drivetrain {
             off += k;
             sv.rhs[j] += t.torque_n_m;
             if refresh {
-                sv.kq[j * n + j] -= t.d_angle_n_m + two_h * t.d_rate_n_m_s;
+                sv.kq[j * nj + j] -= t.d_angle_n_m + two_h * t.d_rate_n_m_s;
             }
         }
         let mut retry = false;
@@ -742,7 +806,7 @@ impl Drivetrain {
                         &mut sv.x1[p],
                         &mut sv.kq,
                         &mut sv.rhs,
-                        n,
+                        nj,
                     ),
                     None => Assembly::Singular,
                 };
@@ -762,7 +826,7 @@ impl Drivetrain {
                 servo,
                 &mut sv.rhs,
                 &mut sv.kq,
-                n,
+                nj,
                 &mut sv.local[p],
             ) {
                 retry = true;
