@@ -783,11 +783,8 @@ impl FlexDynamics {
                     // sum r x (w x (w x r)) = -w x J w,
                     // sum r x (w x v) = w sum r.v - sum v (r.w),
                     // sum r x a = b_1 x e_1 + b_2 x e_2.
-                    let nl = hl.cross(&gl) + al * jl.trace()
-                        - jl * al
-                        - wl.cross(&(jl * wl))
-                        + (wl * (c1.y + c2.z) - Vector3::new(0.0, c1.dot(&wl), c2.dot(&wl)))
-                            * 2.0
+                    let nl = hl.cross(&gl) + al * jl.trace() - jl * al - wl.cross(&(jl * wl))
+                        + (wl * (c1.y + c2.z) - Vector3::new(0.0, c1.dot(&wl), c2.dot(&wl))) * 2.0
                         + Vector3::new(b2.y - b1.z, -b2.x, b1.x);
                     // Generalised forces of the modes: sum_s phi_m(x_s) e_d . f_s.
                     for m in 0..nm {

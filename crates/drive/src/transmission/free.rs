@@ -34,6 +34,8 @@ pub(crate) struct FreeFactor {
     y: Vec<f64>,
     /// The last [`Self::factor`] succeeded.
     pub ok: bool,
+    /// Steps begun since the last [`Self::factor`].
+    pub age: u32,
 }
 
 #[inline]
@@ -52,6 +54,7 @@ impl FreeFactor {
             schur: vec![0.0; nj * nj],
             y: vec![0.0; nf],
             ok: false,
+            age: 0,
         }
     }
 
@@ -60,6 +63,7 @@ impl FreeFactor {
     pub(crate) fn factor(&mut self, a: &[f64]) -> bool {
         let (nj, nf) = (self.nj, self.nf);
         let n = nj + nf;
+        self.age = 0;
         // Cholesky-Banachiewicz, row by row.
         for i in 0..nf {
             let (prev, rest) = self.l.split_at_mut(i * nf);

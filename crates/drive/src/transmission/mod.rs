@@ -67,6 +67,6 @@ pub use relay::{CompiledRelays, RelayFriction, RelayRule, RelayState, RelayTorqu
 pub use spec::{MotorFriction, MotorMode, MotorSpec, PairSpec, Relay, RoutingMatrix, Tensioner};
 pub use state::PlantState;
 pub use step::{
-    Drivetrain, DrivetrainEnergy, JointSide, MotorInputs, MAX_KEPT_STEPS, NEWTON_TOLERANCE,
-    RELAY_NEWTON_TOLERANCE,
+    Drivetrain, DrivetrainEnergy, JointSide, MotorInputs, FREE_BASE_STEPS, MAX_KEPT_STEPS,
+    NEWTON_TOLERANCE, RELAY_NEWTON_TOLERANCE,
 };
