@@ -23,7 +23,11 @@
 //! The beam's mass is a set of point masses at Gauss-Legendre stations (`2 m + 6` of
 //! them for `m` modes per direction: the modal masses exact to 1e-10 for two modes);
 //! the rest of the link's URDF inertial (its mass, first moment and inertia less the
-//! stations') is a rigid body on the deflected end. At `eta = 0` the link's inertia is
+//! stations') is a rigid body on the deflected end. The step never visits the stations
+//! one by one: what it sums over them is linear or quadratic in their positions
+//! `(x_s, w_1(x_s), w_2(x_s))` in the link's basis `[e_a e_1 e_2]`, so it uses their mass
+//! moments (`sum m`, `sum m x`, `sum m x^2`, per mode `sum m phi` and `sum m x phi`, the
+//! modal mass), made once, times the modal coordinates. At `eta = 0` the link's inertia is
 //! exactly its URDF inertial, so a stiff beam is the rigid arm. The equations are
 //! Kane's (virtual power) for that discretised mass: inverse dynamics by a recursion
 //! over the links (Newton-Euler, with the stations and the end's rigid motion), the
@@ -725,10 +729,12 @@ impl FlexDynamics {
                     // The rest of the link, on the end.
                     let er = k.end_rot[i];
                     let h = er * f.rest.h;
-                    let ib = er * f.rest.i * er.transpose();
                     let ag = k.eacc[i] - g;
                     k.ef[i] = ag * f.rest.m + ale.cross(&h) + we.cross(&we.cross(&h));
-                    k.en[i] = ib * ale + we.cross(&(ib * we)) + h.cross(&ag);
+                    // Its inertia in the end frame: I al + w x I w there, turned back.
+                    let (we_e, ale_e) = (er.tr_mul(&we), er.tr_mul(&ale));
+                    let iw = f.rest.i * we_e;
+                    k.en[i] = er * (f.rest.i * ale_e + we_e.cross(&iw)) + h.cross(&ag);
                     // The beam: its stations' forces `m_s (acc_s - g)`, summed by the
                     // mass moments (in the basis E = [e_a e_1 e_2]: a station at
                     // r_s = (x_s, w_1, w_2), moving at (0, w_1', w_2') relative to the

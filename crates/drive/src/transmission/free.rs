@@ -24,8 +24,11 @@ pub(crate) struct FreeFactor {
     nj: usize,
     /// Free coordinates, after the joints.
     nf: usize,
-    /// Cholesky factor of `A_mm` (lower triangle, row-major `nf x nf`).
+    /// Cholesky factor of `A_mm` (lower triangle, row-major `nf x nf`), and the
+    /// reciprocals of its diagonal (the solves multiply: a division's latency in
+    /// their dependent chains cost more than the rest of them).
     l: Vec<f64>,
+    inv_d: Vec<f64>,
     /// `W^T`, row-major `nj x nf`: row `c` is `L^-1 A_m,c`.
     wt: Vec<f64>,
     /// The Schur complement `A_jj - W^T W`, row-major `nj x nj`.
@@ -50,6 +53,7 @@ impl FreeFactor {
             nj,
             nf,
             l: vec![0.0; nf * nf],
+            inv_d: vec![0.0; nf],
             wt: vec![0.0; nj * nf],
             schur: vec![0.0; nj * nj],
             y: vec![0.0; nf],
@@ -70,21 +74,22 @@ impl FreeFactor {
             let ri = &mut rest[..nf];
             ri.copy_from_slice(&a[(nj + i) * n + nj..(nj + i + 1) * n]);
             for j in 0..i {
-                let rj = &prev[j * nf..j * nf + j + 1];
-                ri[j] = (ri[j] - dot(&ri[..j], &rj[..j])) / rj[j];
+                let rj = &prev[j * nf..j * nf + j];
+                ri[j] = (ri[j] - dot(&ri[..j], rj)) * self.inv_d[j];
             }
             let d = ri[i] - dot(&ri[..i], &ri[..i]);
             if !(d > 0.0 && d.is_finite()) {
                 return false;
             }
             ri[i] = d.sqrt();
+            self.inv_d[i] = 1.0 / ri[i];
         }
         // W^T: forward substitution of every joint column of A_mj.
         for c in 0..nj {
             let w = &mut self.wt[c * nf..(c + 1) * nf];
             for i in 0..nf {
-                let li = &self.l[i * nf..i * nf + i + 1];
-                w[i] = (a[(nj + i) * n + c] - dot(&li[..i], &w[..i])) / li[i];
+                let li = &self.l[i * nf..i * nf + i];
+                w[i] = (a[(nj + i) * n + c] - dot(li, &w[..i])) * self.inv_d[i];
             }
         }
         for r in 0..nj {
@@ -107,8 +112,8 @@ impl FreeFactor {
         let (nj, nf) = (self.nj, self.nf);
         let (rj, rm) = rhs.split_at_mut(nj);
         for i in 0..nf {
-            let li = &self.l[i * nf..i * nf + i + 1];
-            self.y[i] = (rm[i] - dot(&li[..i], &self.y[..i])) / li[i];
+            let li = &self.l[i * nf..i * nf + i];
+            self.y[i] = (rm[i] - dot(li, &self.y[..i])) * self.inv_d[i];
         }
         for (c, r) in rj.iter_mut().enumerate() {
             *r -= dot(&self.wt[c * nf..(c + 1) * nf], &self.y);
@@ -129,10 +134,10 @@ impl FreeFactor {
         }
         // Back substitution with L^T, column by column (rows of L).
         for i in (0..nf).rev() {
-            let li = &self.l[i * nf..i * nf + i + 1];
-            let x = z[i] / li[i];
+            let li = &self.l[i * nf..i * nf + i];
+            let x = z[i] * self.inv_d[i];
             z[i] = x;
-            for (zk, l) in z[..i].iter_mut().zip(&li[..i]) {
+            for (zk, l) in z[..i].iter_mut().zip(li) {
                 *zk -= l * x;
             }
         }

@@ -104,10 +104,11 @@ pub const MAX_KEPT_STEPS: u32 = 3;
 /// 8 steps took 2.10, 2.11 and 2.13 Newton iterations per step, and the joint angles
 /// stayed within 2.3e-12 (1) and 2.6e-12 rad (4) of the step before the elimination
 /// (docs/arm.md, Speed).
-pub const FREE_BASE_STEPS: u32 = 4;
+pub const FREE_BASE_STEPS: u32 = 8;
 
 /// The joints of a plant: their rigid dynamics without the ropes (the arm's links, the
-/// rig's output pulley). The step calls [`Self::begin_iteration`] first in every Newton
+/// rig's output pulley), and any coordinates of theirs no pair touches after them (the
+/// bending modes of flexible links: [`Drivetrain::with_free_coords`]). The step calls [`Self::begin_iteration`] first in every Newton
 /// iteration, then [`Self::matrix`] when it needs a fresh Newton matrix, then
 /// [`Self::residual`].
 pub trait JointSide {
