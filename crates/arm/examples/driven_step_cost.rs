@@ -1,8 +1,8 @@
 //! Wall time per step of the driven arm (no criterion; the criterion version is
 //! `benches/arm.rs` of the root package):
 //! `cargo run --release -p longreach-arm --example driven_step_cost [FILTER] [STEPS]`
-//! (only the models whose label contains FILTER, e.g. `relay`; STEPS per repetition,
-//! default 20000: a short run suits callgrind).
+//! (only the models whose label contains FILTER, e.g. `relay`, or is FILTER after an
+//! `=`; STEPS per repetition, default 20000: a short run suits callgrind).
 
 use std::path::Path;
 use std::time::Instant;
@@ -21,7 +21,12 @@ fn cpu_ns() -> f64 {
 
 fn time(label: &str, arm: &DrivenArm) {
     let mut args = std::env::args().skip(1);
-    if !label.contains(args.next().as_deref().unwrap_or("")) {
+    let filter = args.next().unwrap_or_default();
+    let wanted = match filter.strip_prefix('=') {
+        Some(exact) => label == exact,
+        None => label.contains(&filter),
+    };
+    if !wanted {
         return;
     }
     let steps: usize = args
@@ -60,6 +65,10 @@ fn main() {
     time(
         "longreach5 dyneema2 four-element servo, relay friction on",
         &load("arm_dyneema2_base_step_relay_friction.toml"),
+    );
+    time(
+        "longreach5 dyneema2 four-element servo, flexible links (2 modes per direction)",
+        &load("flex_dyneema2_base_step.toml"),
     );
     for n in [3, 6, 12] {
         let arm = anchor_chain(n, LawKind::Elastic, 1e-3).unwrap_or_else(|e| panic!("{e}"));

@@ -6,8 +6,9 @@
 //! cargo run --release -p longreach-arm --example trajectories -- compare DIR_A DIR_B
 //! ```
 //!
-//! `dump` runs every `scenarios/arm_*.toml` for its duration (joint angles and rates,
-//! motor angles, tensioner stretches and every span tension of every step), every run
+//! `dump` runs every `scenarios/arm_*.toml` and `scenarios/flex_*.toml` for its duration
+//! (joint angles and rates, with the modal coordinates of flexible links, motor angles,
+//! tensioner stretches and every span tension of every step), every run
 //! of every `scenarios/bode_*.toml` (output angle and both tensions of every step), and
 //! two rigs with relay friction (a short sweep each, every span tension), and writes one
 //! file of little-endian `f64`s per trajectory. `compare` prints, per trajectory,
@@ -145,6 +146,7 @@ fn dump(out: &Path) {
     for path in scenario_files("arm_")
         .into_iter()
         .chain(scenario_files("arm5_"))
+        .chain(scenario_files("flex_"))
     {
         let name = path.file_stem().unwrap().to_string_lossy().to_string();
         dump_arm(&path).write(&out.join(format!("{name}.bin")));

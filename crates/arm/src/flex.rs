@@ -23,7 +23,11 @@
 //! The beam's mass is a set of point masses at Gauss-Legendre stations (`2 m + 6` of
 //! them for `m` modes per direction: the modal masses exact to 1e-10 for two modes);
 //! the rest of the link's URDF inertial (its mass, first moment and inertia less the
-//! stations') is a rigid body on the deflected end. At `eta = 0` the link's inertia is
+//! stations') is a rigid body on the deflected end. The step never visits the stations
+//! one by one: what it sums over them is linear or quadratic in their positions
+//! `(x_s, w_1(x_s), w_2(x_s))` in the link's basis `[e_a e_1 e_2]`, so it uses their mass
+//! moments (`sum m`, `sum m x`, `sum m x^2`, per mode `sum m phi` and `sum m x phi`, the
+//! modal mass), made once, times the modal coordinates. At `eta = 0` the link's inertia is
 //! exactly its URDF inertial, so a stiff beam is the rigid arm. The equations are
 //! Kane's (virtual power) for that discretised mass: inverse dynamics by a recursion
 //! over the links (Newton-Euler, with the stations and the end's rigid motion), the
@@ -165,10 +169,17 @@ pub struct FlexLink {
     pub e1: Vector3<f64>,
     /// Out-of-plane bending direction (link frame).
     pub e2: Vector3<f64>,
-    /// Station positions along the axis (m), masses (kg), mode values.
-    xs: Vec<f64>,
-    ms: Vec<f64>,
-    phi: Vec<[f64; MAX_MODES]>,
+    /// The link-frame basis `[e_a e_1 e_2]` (columns; right-handed: `e_a x e_1 = e_2`).
+    basis: Matrix3<f64>,
+    /// Moments of the stations' mass (`m_s` at `x_s`, mode values `phi_m(x_s)`), the
+    /// sums the dynamics need of them: `sum m_s` (kg), `sum m_s x_s` (kg*m),
+    /// `sum m_s x_s^2` (kg*m^2), per mode `sum m_s phi_m` (kg) and `sum m_s x_s phi_m`
+    /// (kg*m).
+    beam_m: f64,
+    beam_x: f64,
+    beam_xx: f64,
+    beam_p: [f64; MAX_MODES],
+    beam_q: [f64; MAX_MODES],
     /// Modal mass of the stations, `sum_s m_s phi_a phi_b`, kg.
     modal_mass: [[f64; MAX_MODES]; MAX_MODES],
     /// `phi_m(L)`, `phi_m'(L)` (1/m).
@@ -211,13 +222,6 @@ impl FlexLink {
             s2 += self.dphi_l[m] * eta[self.nm + m];
         }
         (s1, s2)
-    }
-
-    /// Rotation of the end section relative to the link frame.
-    fn end_rotation(&self, s1: f64, s2: f64) -> Matrix3<f64> {
-        let r1 = Rotation3::from_axis_angle(&Unit::new_unchecked(self.e2), s1);
-        let r2 = Rotation3::from_axis_angle(&Unit::new_unchecked(self.e1), -s2);
-        *(r1 * r2).matrix()
     }
 
     /// The clamped beam's natural frequencies, Hz (per mode).
@@ -269,9 +273,15 @@ pub struct FlexKin {
     u2: Vec<Vector3<f64>>,
     d1: Vec<Vector3<f64>>,
     d2: Vec<Vector3<f64>>,
-    /// Stations of every flexible link, flattened: world offset from the link origin.
-    st_r: Vec<Vector3<f64>>,
-    st_off: Vec<usize>,
+    /// Per flexible link: its basis in the world (`R [e_a e_1 e_2]`), and the beam's
+    /// mass moments at the modal coordinates in that basis: the first moment about the
+    /// link origin, `sum m_s r_s`, the second, `sum m_s r_s r_s^T`, and `N eta` of each
+    /// direction (`N` the modal mass).
+    eb: Vec<Matrix3<f64>>,
+    hl: Vec<Vector3<f64>>,
+    jl: Vec<Matrix3<f64>>,
+    n1: Vec<[f64; MAX_MODES]>,
+    n2: Vec<[f64; MAX_MODES]>,
     w: Vec<Vector3<f64>>,
     alpha: Vec<Vector3<f64>>,
     acc: Vec<Vector3<f64>>,
@@ -293,6 +303,10 @@ pub struct FlexKin {
     /// Per coordinate: momentum of its unit rate (lin, ang) and its end motion (w, v0).
     mom_l: Vec<Vector3<f64>>,
     mom_a: Vec<Vector3<f64>>,
+    /// Per modal coordinate: the momentum of its unit rate of the link's end and what it
+    /// carries (lin, ang), the stations left out.
+    end_l: Vec<Vector3<f64>>,
+    end_a: Vec<Vector3<f64>>,
     mw: Vec<Vector3<f64>>,
     mv: Vec<Vector3<f64>>,
 }
@@ -457,10 +471,19 @@ impl FlexDynamics {
                 damping[m] = 2.0 * f.damping_ratio * (stiffness[m] * mu * length).sqrt();
             }
             let mut modal_mass = [[0.0; MAX_MODES]; MAX_MODES];
+            let (mut beam_m, mut beam_x, mut beam_xx) = (0.0, 0.0, 0.0);
+            let mut beam_p = [0.0; MAX_MODES];
+            let mut beam_q = [0.0; MAX_MODES];
             for (s_i, ph) in phi.iter().enumerate() {
+                let (m, x) = (ms[s_i], xs[s_i]);
+                beam_m += m;
+                beam_x += m * x;
+                beam_xx += m * x * x;
                 for a in 0..f.modes {
+                    beam_p[a] += m * ph[a];
+                    beam_q[a] += m * x * ph[a];
                     for b in 0..f.modes {
-                        modal_mass[a][b] += ms[s_i] * ph[a] * ph[b];
+                        modal_mass[a][b] += m * ph[a] * ph[b];
                     }
                 }
             }
@@ -473,9 +496,12 @@ impl FlexDynamics {
                 ea,
                 e1,
                 e2,
-                xs,
-                ms,
-                phi,
+                basis: Matrix3::from_columns(&[ea, e1, e2]),
+                beam_m,
+                beam_x,
+                beam_xx,
+                beam_p,
+                beam_q,
                 modal_mass,
                 phi_l,
                 dphi_l,
@@ -521,13 +547,6 @@ impl FlexDynamics {
         let nl = self.links.len();
         let nf = self.flex.len();
         let z = vec![Vector3::zeros(); nl];
-        let mut st_off = Vec::with_capacity(nf + 1);
-        let mut ns = 0;
-        for f in &self.flex {
-            st_off.push(ns);
-            ns += f.xs.len();
-        }
-        st_off.push(ns);
         FlexKin {
             rot: vec![Matrix3::identity(); nl],
             origin: z.clone(),
@@ -538,8 +557,11 @@ impl FlexDynamics {
             u2: vec![Vector3::zeros(); nf],
             d1: vec![Vector3::zeros(); nf],
             d2: vec![Vector3::zeros(); nf],
-            st_r: vec![Vector3::zeros(); ns],
-            st_off,
+            eb: vec![Matrix3::identity(); nf],
+            hl: vec![Vector3::zeros(); nf],
+            jl: vec![Matrix3::zeros(); nf],
+            n1: vec![[0.0; MAX_MODES]; nf],
+            n2: vec![[0.0; MAX_MODES]; nf],
             w: z.clone(),
             alpha: z.clone(),
             acc: z.clone(),
@@ -558,6 +580,8 @@ impl FlexDynamics {
             ti: vec![Matrix3::zeros(); nl],
             mom_l: vec![Vector3::zeros(); self.nq],
             mom_a: vec![Vector3::zeros(); self.nq],
+            end_l: vec![Vector3::zeros(); self.nq],
+            end_a: vec![Vector3::zeros(); self.nq],
             mw: vec![Vector3::zeros(); self.nq],
             mv: vec![Vector3::zeros(); self.nq],
         }
@@ -589,30 +613,50 @@ impl FlexDynamics {
                 }
                 Some(fi) => {
                     let f = &self.flex[fi];
-                    let eta = &q[f.offset..f.offset + 2 * f.nm];
+                    let nm = f.nm;
+                    let eta = &q[f.offset..f.offset + 2 * nm];
                     let (s1, s2) = f.end_slopes(eta);
                     let (mut w1, mut w2) = (0.0, 0.0);
-                    for m in 0..f.nm {
-                        w1 += f.phi_l[m] * eta[m];
-                        w2 += f.phi_l[m] * eta[f.nm + m];
+                    let (mut p1, mut p2, mut q1, mut q2) = (0.0, 0.0, 0.0, 0.0);
+                    let mut n1 = [0.0; MAX_MODES];
+                    let mut n2 = [0.0; MAX_MODES];
+                    for m in 0..nm {
+                        let (a, b) = (eta[m], eta[nm + m]);
+                        w1 += f.phi_l[m] * a;
+                        w2 += f.phi_l[m] * b;
+                        p1 += f.beam_p[m] * a;
+                        p2 += f.beam_p[m] * b;
+                        q1 += f.beam_q[m] * a;
+                        q2 += f.beam_q[m] * b;
+                        for c in 0..nm {
+                            n1[m] += f.modal_mass[m][c] * eta[c];
+                            n2[m] += f.modal_mass[m][c] * eta[nm + c];
+                        }
                     }
+                    let (mut j11, mut j12, mut j22) = (0.0, 0.0, 0.0);
+                    for m in 0..nm {
+                        j11 += eta[m] * n1[m];
+                        j12 += eta[m] * n2[m];
+                        j22 += eta[nm + m] * n2[m];
+                    }
+                    // The beam's mass moments in the basis [e_a e_1 e_2]: a station at
+                    // x_s is at (x_s, w_1(x_s), w_2(x_s)).
+                    k.hl[fi] = Vector3::new(f.beam_x, p1, p2);
+                    k.jl[fi] = Matrix3::new(f.beam_xx, q1, q2, q1, j11, j12, q2, j12, j22);
+                    k.n1[fi] = n1;
+                    k.n2[fi] = n2;
                     let tip = f.ea * f.length_m + f.e1 * w1 + f.e2 * w2;
                     k.end_origin[i] = k.origin[i] + rot * tip;
-                    k.end_rot[i] = rot * f.end_rotation(s1, s2);
-                    k.d1[fi] = rot * f.e1;
-                    k.d2[fi] = rot * f.e2;
-                    k.u1[fi] = rot * f.e2;
+                    // The end section: Rot(e_2, d_1'(L)) Rot(e_1, -d_2'(L)).
                     let r1 = Rotation3::from_axis_angle(&Unit::new_unchecked(f.e2), s1);
+                    let r2 = Rotation3::from_axis_angle(&Unit::new_unchecked(f.e1), -s2);
+                    k.end_rot[i] = rot * (r1 * r2).matrix();
+                    let eb = rot * f.basis;
+                    k.eb[fi] = eb;
+                    k.d1[fi] = eb.column(1).into_owned();
+                    k.d2[fi] = eb.column(2).into_owned();
+                    k.u1[fi] = k.d2[fi];
                     k.u2[fi] = rot * (r1 * (-f.e1));
-                    let base = k.st_off[fi];
-                    for (s, &x) in f.xs.iter().enumerate() {
-                        let (mut w1, mut w2) = (0.0, 0.0);
-                        for m in 0..f.nm {
-                            w1 += f.phi[s][m] * eta[m];
-                            w2 += f.phi[s][m] * eta[f.nm + m];
-                        }
-                        k.st_r[base + s] = rot * (f.ea * x + f.e1 * w1 + f.e2 * w2);
-                    }
                 }
             }
         }
@@ -685,43 +729,82 @@ impl FlexDynamics {
                     // The rest of the link, on the end.
                     let er = k.end_rot[i];
                     let h = er * f.rest.h;
-                    let ib = er * f.rest.i * er.transpose();
                     let ag = k.eacc[i] - g;
                     k.ef[i] = ag * f.rest.m + ale.cross(&h) + we.cross(&we.cross(&h));
-                    k.en[i] = ib * ale + we.cross(&(ib * we)) + h.cross(&ag);
-                    // Stations.
-                    let mut fs = Vector3::zeros();
-                    let mut ns = Vector3::zeros();
-                    let base = k.st_off[fi];
-                    tau[o..o + 2 * nm].fill(0.0);
-                    for s in 0..f.xs.len() {
-                        let r = k.st_r[base + s];
-                        let ph = &f.phi[s];
-                        let (mut sv1, mut sv2, mut sa1, mut sa2) = (0.0, 0.0, 0.0, 0.0);
-                        for m in 0..nm {
-                            sv1 += ph[m] * qd[o + m];
-                            sv2 += ph[m] * qd[o + nm + m];
-                            sa1 += ph[m] * qdd[o + m];
-                            sa2 += ph[m] * qdd[o + nm + m];
-                        }
-                        let vr = d1 * sv1 + d2 * sv2;
-                        let ar = d1 * sa1 + d2 * sa2;
-                        let acc_s = acci
-                            + ali.cross(&r)
-                            + wi.cross(&wi.cross(&r))
-                            + wi.cross(&vr) * 2.0
-                            + ar;
-                        let fsta = (acc_s - g) * f.ms[s];
-                        fs += fsta;
-                        ns += r.cross(&fsta);
-                        let (p1, p2) = (d1.dot(&fsta), d2.dot(&fsta));
-                        for m in 0..nm {
-                            tau[o + m] += ph[m] * p1;
-                            tau[o + nm + m] += ph[m] * p2;
+                    // Its inertia in the end frame: I al + w x I w there, turned back.
+                    let (we_e, ale_e) = (er.tr_mul(&we), er.tr_mul(&ale));
+                    let iw = f.rest.i * we_e;
+                    k.en[i] = er * (f.rest.i * ale_e + we_e.cross(&iw)) + h.cross(&ag);
+                    // The beam: its stations' forces `m_s (acc_s - g)`, summed by the
+                    // mass moments (in the basis E = [e_a e_1 e_2]: a station at
+                    // r_s = (x_s, w_1, w_2), moving at (0, w_1', w_2') relative to the
+                    // link, accelerating at (0, w_1'', w_2'')).
+                    let eb = k.eb[fi];
+                    let gl = eb.tr_mul(&(acci - g));
+                    let al = eb.tr_mul(&ali);
+                    let wl = eb.tr_mul(&wi);
+                    let (hl, jl) = (k.hl[fi], k.jl[fi]);
+                    let (n1, n2) = (&k.n1[fi], &k.n2[fi]);
+                    let (qd1, qd2) = (&qd[o..o + nm], &qd[o + nm..o + 2 * nm]);
+                    let (qdd1, qdd2) = (&qdd[o..o + nm], &qdd[o + nm..o + 2 * nm]);
+                    let (mut pv1, mut pv2, mut pa1, mut pa2) = (0.0, 0.0, 0.0, 0.0);
+                    let (mut qv1, mut qv2, mut qa1, mut qa2) = (0.0, 0.0, 0.0, 0.0);
+                    let mut nv1 = [0.0; MAX_MODES];
+                    let mut nv2 = [0.0; MAX_MODES];
+                    let mut na1 = [0.0; MAX_MODES];
+                    let mut na2 = [0.0; MAX_MODES];
+                    for m in 0..nm {
+                        pv1 += f.beam_p[m] * qd1[m];
+                        pv2 += f.beam_p[m] * qd2[m];
+                        pa1 += f.beam_p[m] * qdd1[m];
+                        pa2 += f.beam_p[m] * qdd2[m];
+                        qv1 += f.beam_q[m] * qd1[m];
+                        qv2 += f.beam_q[m] * qd2[m];
+                        qa1 += f.beam_q[m] * qdd1[m];
+                        qa2 += f.beam_q[m] * qdd2[m];
+                        for c in 0..nm {
+                            let nmc = f.modal_mass[m][c];
+                            nv1[m] += nmc * qd1[c];
+                            nv2[m] += nmc * qd2[c];
+                            na1[m] += nmc * qdd1[c];
+                            na2[m] += nmc * qdd2[c];
                         }
                     }
-                    k.f[i] = fs;
-                    k.n[i] = ns;
+                    let dn = |x: &[f64], n: &[f64; MAX_MODES]| -> f64 {
+                        x.iter().zip(n).map(|(a, b)| a * b).sum()
+                    };
+                    // sum m_s w_d' r_s and sum m_s w_d'' r_s.
+                    let c1 = Vector3::new(qv1, dn(qd1, n1), dn(qd1, n2));
+                    let c2 = Vector3::new(qv2, dn(qd2, n1), dn(qd2, n2));
+                    let b1 = Vector3::new(qa1, dn(qdd1, n1), dn(qdd1, n2));
+                    let b2 = Vector3::new(qa2, dn(qdd2, n1), dn(qdd2, n2));
+                    let hv = Vector3::new(0.0, pv1, pv2);
+                    let ha = Vector3::new(0.0, pa1, pa2);
+                    let fl = gl * f.beam_m
+                        + al.cross(&hl)
+                        + wl.cross(&wl.cross(&hl))
+                        + wl.cross(&hv) * 2.0
+                        + ha;
+                    // sum r x (alpha x r) = tr(J) alpha - J alpha,
+                    // sum r x (w x (w x r)) = -w x J w,
+                    // sum r x (w x v) = w sum r.v - sum v (r.w),
+                    // sum r x a = b_1 x e_1 + b_2 x e_2.
+                    let nl = hl.cross(&gl) + al * jl.trace() - jl * al - wl.cross(&(jl * wl))
+                        + (wl * (c1.y + c2.z) - Vector3::new(0.0, c1.dot(&wl), c2.dot(&wl))) * 2.0
+                        + Vector3::new(b2.y - b1.z, -b2.x, b1.x);
+                    // Generalised forces of the modes: sum_s phi_m(x_s) e_d . f_s.
+                    for m in 0..nm {
+                        let rho = Vector3::new(f.beam_q[m], n1[m], n2[m]);
+                        let nu = Vector3::new(0.0, nv1[m], nv2[m]);
+                        let fm = gl * f.beam_p[m]
+                            + al.cross(&rho)
+                            + wl.cross(&wl.cross(&rho))
+                            + wl.cross(&nu) * 2.0;
+                        tau[o + m] = fm.y + na1[m];
+                        tau[o + nm + m] = fm.z + na2[m];
+                    }
+                    k.f[i] = eb * fl;
+                    k.n[i] = eb * nl;
                 }
             }
         }
@@ -793,17 +876,16 @@ impl FlexDynamics {
                     let f = &self.flex[fi];
                     let b = world(&f.rest, &k.end_rot[i], &k.end_origin[i]);
                     (k.tm[i], k.th[i], k.ti[i]) = (b.m, b.h, b.i);
-                    let mut sm = 0.0;
-                    let mut sh = Vector3::zeros();
-                    let mut si = Matrix3::zeros();
-                    let base = k.st_off[fi];
-                    for s in 0..f.xs.len() {
-                        let pw = k.origin[i] + k.st_r[base + s];
-                        sm += f.ms[s];
-                        sh += pw * f.ms[s];
-                        si += skew_sq(&pw) * f.ms[s];
-                    }
-                    (k.rm[i], k.rh[i], k.ri[i]) = (sm, sh, si);
+                    // The beam about the world origin from its mass moments.
+                    let (o, eb) = (k.origin[i], k.eb[fi]);
+                    let sm = f.beam_m;
+                    let hw = eb * k.hl[fi];
+                    let pp = o * o.transpose() * sm
+                        + o * hw.transpose()
+                        + hw * o.transpose()
+                        + eb * k.jl[fi] * eb.transpose();
+                    let si = Matrix3::identity() * pp.trace() - pp;
+                    (k.rm[i], k.rh[i], k.ri[i]) = (sm, o * sm + hw, si);
                 }
             }
         }
@@ -844,8 +926,8 @@ impl FlexDynamics {
             k.mom_a[j] = ma;
             if let Some(fi) = self.links[i].flex {
                 let f = &self.flex[fi];
-                let base = k.st_off[fi];
                 let ot = k.end_origin[i];
+                let (o, eb) = (k.origin[i], k.eb[fi]);
                 for dir in 0..2 {
                     let (dv, u) = if dir == 0 {
                         (k.d1[fi], k.u1[fi])
@@ -858,60 +940,64 @@ impl FlexDynamics {
                         let v0 = dv * f.phi_l[md] - w.cross(&ot);
                         k.mw[c] = w;
                         k.mv[c] = v0;
-                        let (mut ml, mut ma) = mom(k.tm[i], &k.th[i], &k.ti[i], &w, &v0);
-                        for s in 0..f.xs.len() {
-                            let pw = k.origin[i] + k.st_r[base + s];
-                            let fv = dv * (f.ms[s] * f.phi[s][md]);
-                            ml += fv;
-                            ma += pw.cross(&fv);
-                        }
-                        k.mom_l[c] = ml;
-                        k.mom_a[c] = ma;
+                        let (ml, ma) = mom(k.tm[i], &k.th[i], &k.ti[i], &w, &v0);
+                        k.end_l[c] = ml;
+                        k.end_a[c] = ma;
+                        // The stations: sum m_s phi(x_s) (dv, p_s x dv).
+                        let rho = o * f.beam_p[md]
+                            + eb * Vector3::new(f.beam_q[md], k.n1[fi][md], k.n2[fi][md]);
+                        k.mom_l[c] = ml + dv * f.beam_p[md];
+                        k.mom_a[c] = ma + rho.cross(&dv);
                     }
                 }
             }
         }
-        let mut set = |a: usize, b: usize, v: f64| {
+        let set = |m: &mut [f64], a: usize, b: usize, v: f64| {
             m[a * nq + b] = v;
             m[b * nq + a] = v;
         };
         let dot =
             |k: &FlexKin, a: usize, b: usize| k.mw[a].dot(&k.mom_a[b]) + k.mv[a].dot(&k.mom_l[b]);
+        // Every coordinate `b` of link i (its joint, then its modes) against the
+        // coordinates of link i before it and of every ancestor.
+        let ancestors = |k: &FlexKin, m: &mut [f64], i: usize, b: usize| {
+            let mut anc = self.links[i].parent;
+            while anc > 0 {
+                set(m, anc - 1, b, dot(k, anc - 1, b));
+                if let Some(fa) = self.links[anc].flex {
+                    let fa = &self.flex[fa];
+                    for a in fa.offset..fa.offset + 2 * fa.nm {
+                        set(m, a, b, dot(k, a, b));
+                    }
+                }
+                anc = self.links[anc].parent;
+            }
+        };
         for i in 1..nl {
             let j = i - 1;
-            // Coordinates of link i: the joint, then its modes.
-            let flex = self.links[i].flex.map(|fi| &self.flex[fi]);
-            let (first, count) = flex.map_or((j, 1), |f| (f.offset, 2 * f.nm + 1));
-            let coord = |t: usize| if t == 0 { j } else { first + t - 1 };
-            for bt in 0..count {
-                let b = coord(bt);
-                // Within the link.
-                for at in 0..=bt {
-                    let a = coord(at);
-                    let v = if a == j {
-                        dot(k, a, b) + if b == j { self.links[i].armature } else { 0.0 }
-                    } else {
-                        // Two modes of the same link: stations plus the end's composite.
-                        let f = flex.expect("modes of a flexible link");
-                        let (da, ma) = ((a - f.offset) / f.nm, (a - f.offset) % f.nm);
-                        let (db, mb) = ((b - f.offset) / f.nm, (b - f.offset) % f.nm);
-                        let st = if da == db { f.modal_mass[ma][mb] } else { 0.0 };
-                        let (ml, mma) = mom(k.tm[i], &k.th[i], &k.ti[i], &k.mw[b], &k.mv[b]);
-                        st + k.mw[a].dot(&mma) + k.mv[a].dot(&ml)
-                    };
-                    set(a, b, v);
-                }
-                // Ancestors.
-                let mut anc = self.links[i].parent;
-                while anc > 0 {
-                    set(anc - 1, b, dot(k, anc - 1, b));
-                    if let Some(fa) = self.links[anc].flex {
-                        let fa = &self.flex[fa];
-                        for a in fa.offset..fa.offset + 2 * fa.nm {
-                            set(a, b, dot(k, a, b));
+            set(m, j, j, dot(k, j, j) + self.links[i].armature);
+            ancestors(k, m, i, j);
+            let Some(fi) = self.links[i].flex else {
+                continue;
+            };
+            let f = &self.flex[fi];
+            let nm = f.nm;
+            for db in 0..2 {
+                for mb in 0..nm {
+                    let b = f.offset + db * nm + mb;
+                    set(m, j, b, dot(k, j, b));
+                    // Two modes of the same link: the stations' modal mass plus the
+                    // end's composite body.
+                    let (el, ea) = (k.end_l[b], k.end_a[b]);
+                    for da in 0..=db {
+                        let top = if da == db { mb + 1 } else { nm };
+                        for ma in 0..top {
+                            let a = f.offset + da * nm + ma;
+                            let st = if da == db { f.modal_mass[ma][mb] } else { 0.0 };
+                            set(m, a, b, st + k.mw[a].dot(&ea) + k.mv[a].dot(&el));
                         }
                     }
-                    anc = self.links[anc].parent;
+                    ancestors(k, m, i, b);
                 }
             }
         }
@@ -955,10 +1041,7 @@ impl FlexDynamics {
                 Some(fi) => {
                     let f = &self.flex[fi];
                     mh += k.end_origin[i] * f.rest.m + k.end_rot[i] * f.rest.h;
-                    let base = k.st_off[fi];
-                    for s in 0..f.xs.len() {
-                        mh += (k.origin[i] + k.st_r[base + s]) * f.ms[s];
-                    }
+                    mh += k.origin[i] * f.beam_m + k.eb[fi] * k.hl[fi];
                 }
             }
         }

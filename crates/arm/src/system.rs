@@ -334,7 +334,8 @@ impl DrivenArm {
             let field = format!("transmission[{i}] (joint {jn})");
             compiled.push(CompiledPair::new(p.spec.clone(), nq, self.dt_s, &field)?);
         }
-        self.drive = Drivetrain::new(compiled, self.drive.loads.clone(), nq, self.dt_s, tol)?;
+        self.drive = Drivetrain::new(compiled, self.drive.loads.clone(), nq, self.dt_s, tol)?
+            .with_free_coords(nq - self.spec.ndofs())?;
         Ok(self)
     }
 
@@ -412,7 +413,8 @@ impl DrivenArm {
             n,
             self.dt_s,
             Some(tol),
-        )?;
+        )?
+        .with_free_coords(self.drive.free_coords())?;
         Ok(self)
     }
 

@@ -38,7 +38,7 @@ pub(crate) struct IdealEval {
 /// position `rq = R[p] . q1`, motor `th1`, tensioner `x1`); `None` when both ropes are
 /// slack under a constant-force tensioner: the carriage was then moved to take up the
 /// slack (redo the iteration).
-#[inline]
+#[inline(always)]
 pub(crate) fn evaluate(
     pair: &CompiledPair,
     prep: &[PreparedStep; 2],
@@ -73,9 +73,11 @@ pub(crate) fn evaluate(
 /// Adds the pair's contributions at the trial state (joints `q1`, motor `th1`,
 /// tensioner `x1`) to the joint matrix `kq` (`n x n`, row-major) and the right side
 /// `rhs` (`-r_q`), and keeps its border in `local`; `servo` is the motor's row
-/// ([`super::servo::servo_row`]), `None` for a kinematic motor. False when the carriage
-/// had to take up slack ([`evaluate`]): redo the iteration.
-#[inline]
+/// ([`super::servo::servo_row`]), `None` for a kinematic motor; `lower_only`: the joint
+/// matrix is factored by Cholesky, which reads its lower triangle only, so the pair adds
+/// only there. False when the carriage had to take up slack ([`evaluate`]): redo the
+/// iteration.
+#[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn block(
     pair: &CompiledPair,
@@ -88,6 +90,7 @@ pub(crate) fn block(
     kq: &mut [f64],
     n: usize,
     local: &mut [f64; 8],
+    lower_only: bool,
 ) -> bool {
     let rq: f64 = pair.nz.iter().map(|&k| pair.row[k] * q1[k]).sum();
     let Some(ev) = evaluate(pair, prep, rq, th1, x1) else {
@@ -131,10 +134,16 @@ pub(crate) fn block(
     let beta = z[0] * bw[0] + z[1] * bw[1];
     let gamma = z[0] * br[0] + z[1] * br[1];
     let keff = ku - beta;
-    for &a in &pair.nz {
+    // `nz` is ascending: its first `ia + 1` joints are at or left of the diagonal.
+    for (ia, &a) in pair.nz.iter().enumerate() {
         let ra = pair.row[a];
         rhs[a] -= ra * gamma;
-        for &b in &pair.nz {
+        let cols = if lower_only {
+            &pair.nz[..=ia]
+        } else {
+            &pair.nz[..]
+        };
+        for &b in cols {
             kq[a * n + b] += keff * ra * pair.row[b];
         }
     }
@@ -144,7 +153,7 @@ pub(crate) fn block(
 
 /// The local update `(d theta, d x)` of the pair after the joint update `dq`, from the
 /// border kept by [`block`].
-#[inline]
+#[inline(always)]
 pub(crate) fn local_update(pair: &CompiledPair, local: &[f64; 8], dq: &[f64]) -> (f64, f64) {
     let [b11, b12, b21, b22, w0, w1, r0, r1] = *local;
     let rdq: f64 = pair.nz.iter().map(|&k| pair.row[k] * dq[k]).sum();

@@ -47,8 +47,11 @@
 //! - [`load`]: passive torques at the joints ([`JointForce`], [`JointLoad`]), what
 //!   effects at the joint site add;
 //! - [`step`]: the joints' interface ([`JointSide`]) and the implicit step
-//!   ([`Drivetrain::step`]) in named stages.
+//!   ([`Drivetrain::step`]) in named stages;
+//! - `free`: coordinates of the joint side no pair touches (bending modes), eliminated
+//!   once per Newton matrix ([`Drivetrain::with_free_coords`]).
 
+mod free;
 pub(crate) mod ideal;
 pub mod load;
 pub mod pair;
@@ -64,6 +67,6 @@ pub use relay::{CompiledRelays, RelayFriction, RelayRule, RelayState, RelayTorqu
 pub use spec::{MotorFriction, MotorMode, MotorSpec, PairSpec, Relay, RoutingMatrix, Tensioner};
 pub use state::PlantState;
 pub use step::{
-    Drivetrain, DrivetrainEnergy, JointSide, MotorInputs, MAX_KEPT_STEPS, NEWTON_TOLERANCE,
-    RELAY_NEWTON_TOLERANCE,
+    Drivetrain, DrivetrainEnergy, JointSide, MotorInputs, FREE_BASE_STEPS, MAX_KEPT_STEPS,
+    NEWTON_TOLERANCE, RELAY_NEWTON_TOLERANCE,
 };

@@ -4,6 +4,7 @@
 
 use longreach_rope::{PreparedStep, RopeState};
 
+use super::free::FreeFactor;
 use super::relay::assembly::RelayScratch;
 use super::relay::RelayState;
 
@@ -93,6 +94,10 @@ pub(crate) struct Solver {
     pub torque: Vec<f64>,
     /// Per pair with relay friction: its local block (and kept factor).
     pub relay: Vec<Option<RelayScratch>>,
+    /// The factor of the free coordinates' block and its Schur complement on the
+    /// joints ([`super::Drivetrain::with_free_coords`]); `None` without free
+    /// coordinates.
+    pub free: Option<FreeFactor>,
     /// Pivots of the joint LU (plants with relay friction).
     pub perm: Vec<usize>,
     /// The trial state before the last full Newton update and that update (joints,

@@ -30,6 +30,7 @@
 
 use longreach_rope::PreparedStep;
 
+use super::free::FreeFactor;
 use super::ideal;
 use super::load::JointLoad;
 use super::pair::CompiledPair;
@@ -93,8 +94,22 @@ const MIN_STEP_FRACTION: f64 = 1.0 / 1024.0;
 /// with).
 pub const MAX_KEPT_STEPS: u32 = 3;
 
+/// Steps a Newton matrix base with free coordinates ([`Drivetrain::with_free_coords`]:
+/// the joint side's `4 M / h^2 + 2 D / h` with the bending modes' `K`, the factor of
+/// their block and its Schur complement on the joints) serves before it is made
+/// again at the step's predicted pose; the pairs' part is fresh at every iteration.
+/// The iterations still converge on the exact residual, to the same tolerance (a
+/// base a few steps old is one more approximation of the Jacobian, like freezing `M`
+/// over the iterations). On `flex_dyneema2_base_step.toml` (10 s) a base of 1, 4 and
+/// 8 steps took 2.10, 2.11 and 2.13 Newton iterations per step, and the joint angles
+/// stayed within 2.3e-12, 2.5e-12 and 2.0e-11 rad of the step before the elimination;
+/// 8 steps: CPU time per step 4.4-4.7 us against 5.0-5.2 us for 4 on the shared VM
+/// (docs/arm.md, Speed).
+pub const FREE_BASE_STEPS: u32 = 8;
+
 /// The joints of a plant: their rigid dynamics without the ropes (the arm's links, the
-/// rig's output pulley). The step calls [`Self::begin_iteration`] first in every Newton
+/// rig's output pulley), and any coordinates of theirs no pair touches after them (the
+/// bending modes of flexible links: [`Drivetrain::with_free_coords`]). The step calls [`Self::begin_iteration`] first in every Newton
 /// iteration, then [`Self::matrix`] when it needs a fresh Newton matrix, then
 /// [`Self::residual`].
 pub trait JointSide {
@@ -133,6 +148,9 @@ pub struct Drivetrain {
     /// Every pair has relay friction: chord iterations.
     chord_capable: bool,
     newton_tolerance: f64,
+    /// Coordinates at the end of the joint side's that no pair and no load touches
+    /// ([`Self::with_free_coords`]).
+    free: usize,
 }
 
 /// Motor feed-forward and reference rates of one step, per pair (the plant's
@@ -201,7 +219,48 @@ impl Drivetrain {
             any_friction,
             chord_capable,
             newton_tolerance: tol,
+            free: 0,
         })
+    }
+
+    /// The same drivetrain on a joint side whose last `free` coordinates no pair and no
+    /// joint load touches (the bending modes of flexible links): the step factors their
+    /// block of the Newton matrix once per matrix base and solves the joints' Schur
+    /// complement in each iteration (`free` module; the same update to round-off, at
+    /// the cost of an `(n - free)`-square solve). The joint side's [`JointSide::matrix`]
+    /// must then be positive definite on them; a base serves [`FREE_BASE_STEPS`] steps.
+    /// Refused when a pair or a load touches one.
+    pub fn with_free_coords(mut self, free: usize) -> Result<Self, DriveError> {
+        let n = self.ndofs;
+        let nj = n
+            .checked_sub(free)
+            .ok_or_else(|| DriveError::BadParameter {
+                field: "free coordinates".into(),
+                value: free as f64,
+                reason: format!("more than the {n} coordinates"),
+            })?;
+        let touched = self
+            .pairs
+            .iter()
+            .flat_map(|p| p.nz.iter().copied())
+            .chain(self.loads.iter().map(|l| l.joint))
+            .find(|&k| k >= nj);
+        if let Some(k) = touched {
+            return Err(DriveError::BadTransmission {
+                field: "free coordinates".into(),
+                reason: format!(
+                    "coordinate {k} is driven by a pair or a load: only the last \
+                     coordinates no rope or effect acts on can be free"
+                ),
+            });
+        }
+        self.free = free;
+        Ok(self)
+    }
+
+    /// Coordinates no pair and no load touches (see [`Self::with_free_coords`]).
+    pub fn free_coords(&self) -> usize {
+        self.free
     }
 
     /// Step, s.
@@ -302,6 +361,7 @@ impl Drivetrain {
             dq: vec![0.0; n],
             dth: vec![0.0; np],
             dx: vec![0.0; np],
+            free: (self.free > 0).then(|| FreeFactor::new(n - self.free, self.free)),
             kept: false,
             age: 0,
             chord_rate: f64::INFINITY,
@@ -339,6 +399,22 @@ impl Drivetrain {
         st: &mut PlantState<J::Scratch>,
         motors: MotorInputs<'_>,
     ) -> Result<(), DriveError> {
+        // Two instances: a plant without free coordinates runs none of their code.
+        if self.free > 0 {
+            self.step_with::<J, true>(joints, st, motors)
+        } else {
+            self.step_with::<J, false>(joints, st, motors)
+        }
+    }
+
+    /// [`Self::step`], `FREE`: with free coordinates ([`Self::with_free_coords`]).
+    #[inline(never)]
+    fn step_with<J: JointSide, const FREE: bool>(
+        &self,
+        joints: &J,
+        st: &mut PlantState<J::Scratch>,
+        motors: MotorInputs<'_>,
+    ) -> Result<(), DriveError> {
         let n = self.ndofs;
         let h = self.dt_s;
         let t1 = st.time_s + h;
@@ -358,7 +434,13 @@ impl Drivetrain {
         let mut chord_allowed = self.chord_capable;
         // The step starts from the last step's Newton matrix when it was kept.
         let mut refresh = !(chord_allowed && st.solver.kept && st.solver.age < MAX_KEPT_STEPS);
-        let mut mbase_done = false;
+        // With free coordinates, the base and its factor may serve a few steps.
+        let mut mbase_done = FREE
+            && st
+                .solver
+                .free
+                .as_ref()
+                .is_some_and(|f| f.ok && f.age < FREE_BASE_STEPS);
         let mut last_update = f64::INFINITY;
         // The globalised iterations' line search: the merit before the last full update
         // and the fraction of it taken.
@@ -371,7 +453,7 @@ impl Drivetrain {
                 chord_allowed = false;
                 refresh = true;
             }
-            let assembled = self.assemble(
+            let assembled = self.assemble::<J, FREE>(
                 joints,
                 st,
                 motors,
@@ -403,12 +485,16 @@ impl Drivetrain {
                 continue;
             }
             let sv = &mut st.solver;
+            // With free coordinates, the joints' Schur complement (`free` module).
+            let nj = if FREE { n - self.free } else { n };
             let factored = if !refresh {
                 true
+            } else if FREE && sv.free.as_ref().is_some_and(|f| !f.ok) {
+                false
             } else if self.any_friction {
-                !singular && lu_in_place(&mut sv.kq, n, &mut sv.perm)
+                !singular && lu_in_place(&mut sv.kq, nj, &mut sv.perm)
             } else {
-                cholesky_in_place(&mut sv.kq, n)
+                cholesky_in_place(&mut sv.kq, nj)
             };
             if !factored {
                 sv.kept = false;
@@ -421,10 +507,20 @@ impl Drivetrain {
                     },
                 });
             }
+            if FREE {
+                if let Some(ff) = sv.free.as_mut() {
+                    ff.reduce(&mut sv.rhs);
+                }
+            }
             if self.any_friction {
-                lu_solve(&sv.kq, n, &sv.perm, &mut sv.rhs);
+                lu_solve(&sv.kq, nj, &sv.perm, &mut sv.rhs);
             } else {
-                cholesky_solve(&sv.kq, n, &mut sv.rhs);
+                cholesky_solve(&sv.kq, nj, &mut sv.rhs);
+            }
+            if FREE {
+                if let Some(ff) = &sv.free {
+                    ff.expand(&mut sv.rhs);
+                }
             }
             let mut small = true;
             // Largest joint update relative to the tolerance (chord control).
@@ -525,7 +621,7 @@ impl Drivetrain {
                 ),
             });
         }
-        self.commit(st, two_h, four_h2);
+        self.commit::<_, FREE>(st, two_h, four_h2);
         st.iterations = iterations;
         let finite = st.q_rad.iter().chain(&st.qd_rad_s).all(|v| v.is_finite())
             && st.motor_rad.iter().all(|v| v.is_finite())
@@ -596,6 +692,7 @@ impl Drivetrain {
 
     /// Stage 1: every rope's (span's) step prepared from the state, the relays
     /// predicted.
+    #[inline(always)]
     fn begin<S>(&self, st: &mut PlantState<S>) {
         let h = self.dt_s;
         let sv = &mut st.solver;
@@ -613,6 +710,7 @@ impl Drivetrain {
     /// Stage 2: the predictor. Joints and servos by the trapezoidal rule's
     /// constant-acceleration extrapolation, kinematic motors at their references,
     /// tensioners where they were.
+    #[inline(always)]
     fn predict<S>(&self, st: &mut PlantState<S>) {
         let h = self.dt_s;
         let sv = &mut st.solver;
@@ -634,7 +732,8 @@ impl Drivetrain {
     /// Stage 3 (every Newton iteration): the joint residual (and, on `refresh`, the
     /// matrix), every pair's block (Schur complement of its local unknowns) and the
     /// joint loads, into the solver's right side and matrix.
-    fn assemble<J: JointSide>(
+    #[inline(always)]
+    fn assemble<J: JointSide, const FREE: bool>(
         &self,
         joints: &J,
         st: &mut PlantState<J::Scratch>,
@@ -664,11 +763,23 @@ impl Drivetrain {
             // predicted pose unless the last step's matrix served first).
             *fresh.mbase_done = true;
             joints.matrix(joint_scratch, four_h2, two_h, &mut sv.mbase);
+            if FREE {
+                if let Some(ff) = sv.free.as_mut() {
+                    // The free coordinates' block is factored once per base.
+                    ff.ok = ff.factor(&sv.mbase);
+                }
+            }
         }
         joints.residual(joint_scratch, &sv.v1, &sv.a1, &mut sv.rhs);
+        // The joints' part of the Newton matrix: all of it, or the Schur complement of
+        // the free coordinates (row-major `nj x nj`).
+        let nj = if FREE { n - self.free } else { n };
         if refresh {
             sv.age = 0;
-            sv.kq.copy_from_slice(&sv.mbase);
+            match &sv.free {
+                Some(ff) if FREE => sv.kq[..nj * nj].copy_from_slice(&ff.schur),
+                _ => sv.kq.copy_from_slice(&sv.mbase),
+            }
         }
         let mut off = 0;
         for l in &self.loads {
@@ -680,7 +791,7 @@ impl Drivetrain {
             off += k;
             sv.rhs[j] += t.torque_n_m;
             if refresh {
-                sv.kq[j * n + j] -= t.d_angle_n_m + two_h * t.d_rate_n_m_s;
+                sv.kq[j * nj + j] -= t.d_angle_n_m + two_h * t.d_rate_n_m_s;
             }
         }
         let mut retry = false;
@@ -742,7 +853,7 @@ impl Drivetrain {
                         &mut sv.x1[p],
                         &mut sv.kq,
                         &mut sv.rhs,
-                        n,
+                        nj,
                     ),
                     None => Assembly::Singular,
                 };
@@ -762,8 +873,9 @@ impl Drivetrain {
                 servo,
                 &mut sv.rhs,
                 &mut sv.kq,
-                n,
+                nj,
                 &mut sv.local[p],
+                !self.any_friction,
             ) {
                 retry = true;
             }
@@ -780,6 +892,7 @@ impl Drivetrain {
     /// Stage 4 (after the joint solve): every pair's local update (motor, tensioner,
     /// relays) from the joint update in the solver's right side, with the relay
     /// safeguards.
+    #[inline(always)]
     fn update_locals<S>(
         &self,
         st: &mut PlantState<S>,
@@ -952,7 +1065,8 @@ impl Drivetrain {
     /// Last stage: every rope (span) committed at the converged state, the relays,
     /// motors and joints advanced by the trapezoidal rule, the joint loads' states
     /// advanced, the time moved on.
-    fn commit<S>(&self, st: &mut PlantState<S>, two_h: f64, four_h2: f64) {
+    #[inline(always)]
+    fn commit<S, const FREE: bool>(&self, st: &mut PlantState<S>, two_h: f64, four_h2: f64) {
         let h = self.dt_s;
         let n = self.ndofs;
         let sv = &mut st.solver;
@@ -1010,12 +1124,15 @@ impl Drivetrain {
         st.time_s += h;
         sv.kept = self.chord_capable;
         sv.age += 1;
+        if let Some(ff) = sv.free.as_mut().filter(|_| FREE) {
+            ff.age += 1;
+        }
     }
 }
 
 /// Commits both ropes of an ideal pair at tensioner stretch `x` and differential
 /// stretch `u` (m).
-#[inline]
+#[inline(always)]
 pub(crate) fn commit_ideal(
     pair: &CompiledPair,
     prep: &[PreparedStep; 2],
@@ -1061,6 +1178,7 @@ struct Locals {
 
 /// In-place Cholesky factorisation of the SPD row-major `n x n` matrix `a` (lower
 /// triangle); false when not positive definite.
+#[inline(always)]
 pub(crate) fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
     for j in 0..n {
         let mut d = a[j * n + j];
@@ -1084,6 +1202,7 @@ pub(crate) fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
 }
 
 /// Solves `L L^T x = b` in place with the factor of [`cholesky_in_place`].
+#[inline(always)]
 pub(crate) fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
     for i in 0..n {
         let mut s = b[i];
