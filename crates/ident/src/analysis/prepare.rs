@@ -65,6 +65,10 @@ pub struct Prepared<'a> {
     /// The plant that reproduces it (sweeps simulated at [`sim::SWEEP_SUBSTEPS`]
     /// sub-steps per sample).
     pub plant: Box<dyn Plant + 'a>,
+    /// Runs simulated so far through [`Self::simulate_channels`] (every simulation of
+    /// fit, compare and diagnose but the sweeps' refined ones): the work of a diagnosis,
+    /// whatever the machine's load.
+    simulations: std::sync::atomic::AtomicUsize,
 }
 
 impl<'a> Prepared<'a> {
@@ -157,6 +161,7 @@ impl<'a> Prepared<'a> {
             kind: data_kind(ds),
             runs,
             plant: plant_for(ds, sim::SWEEP_SUBSTEPS),
+            simulations: std::sync::atomic::AtomicUsize::new(0),
         })
     }
 
@@ -176,8 +181,24 @@ impl<'a> Prepared<'a> {
 
     /// Simulates `model` on run `r`: every channel the run measured.
     pub fn simulate_channels(&self, model: &Model, r: usize) -> Result<Channels, IdentError> {
-        let params = model.plant_params(r)?;
-        self.plant.simulate(&params, r)
+        self.simulate_params(&model.plant_params(r)?, r)
+    }
+
+    /// Simulates run `r` with the plant numbers `params` (counted as
+    /// [`Self::simulate_channels`] is).
+    pub(crate) fn simulate_params(
+        &self,
+        params: &crate::model::PlantParams,
+        r: usize,
+    ) -> Result<Channels, IdentError> {
+        self.simulations
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.plant.simulate(params, r)
+    }
+
+    /// Runs simulated so far (one per run and model; see the field).
+    pub fn simulations(&self) -> usize {
+        self.simulations.load(std::sync::atomic::Ordering::Relaxed)
     }
 
     /// Residuals (model - measured) over the analysed samples of every run, concatenated.
