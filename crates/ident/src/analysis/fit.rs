@@ -10,7 +10,7 @@ use super::compare::dft;
 use super::prepare::Prepared;
 use crate::dataset::DatasetKind;
 use crate::error::IdentError;
-use crate::fitting::{fit, FitOptions, FitResult, ResidualError, Residuals};
+use crate::fitting::{fit, fit_joining, FitOptions, FitResult, ResidualError, Residuals};
 use crate::model::Model;
 use crate::sim;
 
@@ -461,6 +461,14 @@ pub enum Start {
 /// rig then steps its ropes by Newton's method, ~50x the linear rig's cost.
 pub const DEAR_EVALUATIONS_PER_PARAM: usize = 6;
 
+/// Most simulations of every run of an arm dataset that the least squares of one start
+/// may spend, Jacobians included, per free parameter plus one. On
+/// `example_arm_joint_friction` every start that converged took at most 21 (82
+/// evaluations for 3 parameters); one start of `extra_retardation` crawled along the
+/// valley of its two constants for 457 (88 Jacobians) without converging, a quarter of
+/// the whole diagnosis, and ended worse than the other starts.
+pub const ARM_EVALUATIONS_PER_PARAM: usize = 30;
+
 /// Fits the free parameters of `model` to the dataset, from the search of starting
 /// values ([`Start::Search`]).
 pub fn fit_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, IdentError> {
@@ -507,10 +515,21 @@ pub fn fit_model_from(
         }
     }
     let mut best: Option<(Model, Option<FitResult>, f64)> = None;
+    // Optima of the starts fitted so far (values, SSR; converged fits only): a later
+    // start that comes near one stops there (`fit_joining`).
+    let mut known: Vec<FitResult> = Vec::new();
+    // Starts already fitted, as the fit starts them (strictly inside the bounds): two
+    // grid points that differ only on a bound start the same fit.
+    let mut started: Vec<Vec<u64>> = Vec::new();
     for start in &starts {
         let model_start = model.with_values(start, prep.runs.len());
         let model = &model_start;
         let specs = model.fit_specs(prep.runs.len());
+        let key: Vec<u64> = specs.iter().map(|s| s.initial.to_bits()).collect();
+        if started.contains(&key) {
+            continue;
+        }
+        started.push(key);
         let dear = prep.kind == DataKind::SineSweep
             && model.law_for_run(0).is_ok_and(|(l, _)| !l.is_linear());
         let (fitted_model, fit_res) = if specs.is_empty() {
@@ -523,13 +542,22 @@ pub fn fit_model_from(
                 diff_step: 1e-5,
                 max_evaluations: if dear {
                     DEAR_EVALUATIONS_PER_PARAM * (specs.len() + 1)
+                } else if prep.kind == DataKind::ArmMoves {
+                    ARM_EVALUATIONS_PER_PARAM * (specs.len() + 1)
                 } else {
                     usize::MAX
                 },
             };
             let problem = Problem { cache: &cache };
-            match fit(&problem, &specs, &opts) {
-                Ok(r) => (model.with_values(&r.values, prep.runs.len()), Some(r)),
+            match fit_joining(&problem, &specs, &opts, &known) {
+                // joined the basin of a start fitted before
+                Ok(None) => continue,
+                Ok(Some(r)) => {
+                    if r.converged {
+                        known.push(r.clone());
+                    }
+                    (model.with_values(&r.values, prep.runs.len()), Some(r))
+                }
                 Err(e) if best.is_none() && starts.len() == 1 => return Err(e.into()),
                 Err(_) => continue,
             }
