@@ -333,7 +333,7 @@ fn arm_compare_names_hidden_joint_friction() {
 /// over its noise): the hidden joint friction is named on its example, nothing on the
 /// control.
 #[test]
-#[ignore = "10 min wall on the shared 2-core machine (530 s + 80 s, 250 s of CPU): run with --ignored"]
+#[ignore = "9 min wall on the shared 2-core machine (456 s + 88 s, 130 s of CPU; 3120 + 440 run simulations): run with --ignored"]
 fn arm_diagnose_names_joint_friction_and_nothing_on_the_control() {
     use longreach_ident::analysis::{diagnose, Prepared};
     for (name, expect) in [
