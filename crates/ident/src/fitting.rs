@@ -92,6 +92,16 @@
 //! without it, and [`FitResult::interval_method`] names it. The columns of `J` are
 //! scaled to unit norm for all of this (sensitivities span decades).
 //!
+//! # Several starts
+//!
+//! A caller that fits one problem from several starts (the analysis' multi-start on a
+//! grid) passes the optima already found to [`fit_joining`]: a start whose accepted
+//! point comes within [`JOIN_RADIUS`] (relative) or [`JOIN_STD_ERRORS`] standard errors
+//! of one of them in every parameter, at an SSR not
+//! below it by more than the fit's relative `tolerance`, has joined that basin and stops
+//! there (no result): finishing would reach the same optimum within the fit's own
+//! tolerances. Each basin is then paid for once.
+//!
 //! # Determinism
 //!
 //! The `p + 1` residual vectors of a Jacobian are evaluated in parallel with rayon, each
@@ -614,8 +624,30 @@ fn differences(
     Ok((r0, cols, extra))
 }
 
+/// Relative distance (in `ln x` for a log-scale parameter) within which a fit's
+/// iterate has joined an optimum already found ([`fit_joining`]).
+pub const JOIN_RADIUS: f64 = 0.01;
+
+/// Distance in standard errors of the optimum within which a parameter has joined it
+/// too (a parameter the data hardly determine, e.g. one going to zero on a log scale).
+pub const JOIN_STD_ERRORS: f64 = 0.1;
+
+/// True when `a` is within [`JOIN_RADIUS`] of `b` (relative, or in `ln x` for a
+/// log-scale parameter), or within [`JOIN_STD_ERRORS`] of `b`'s standard error `se`.
+fn near(s: &ParamSpec, a: f64, b: f64, se: f64) -> bool {
+    if (a - b).abs() <= JOIN_STD_ERRORS * se {
+        return true;
+    }
+    if s.log_scale && a > 0.0 && b > 0.0 {
+        (a.ln() - b.ln()).abs() <= JOIN_RADIUS
+    } else {
+        (a - b).abs() <= JOIN_RADIUS * a.abs().max(b.abs())
+    }
+}
+
 struct Problem<'a> {
     residuals: &'a dyn Residuals,
+    tolerance: f64,
     specs: &'a [ParamSpec],
     transforms: Vec<Transform>,
     u: na::DVector<f64>,
@@ -627,6 +659,10 @@ struct Problem<'a> {
     /// [`FitOptions::max_evaluations`], and whether a Jacobian was refused by it.
     max_evaluations: usize,
     budget_spent: Cell<bool>,
+    /// Optima of earlier fits of the same problem that this fit stops at when it comes
+    /// near one ([`fit_joining`]), and whether it did.
+    known: &'a [FitResult],
+    joined: Cell<bool>,
     /// Residuals of the last point that evaluated (see "Points where the model fails").
     last_good: RefCell<na::DVector<f64>>,
     /// Trial points where the model failed, and the first failure.
@@ -689,9 +725,27 @@ impl LeastSquaresProblem<f64, na::Dyn, na::Dyn> for Problem<'_> {
             self.budget_spent.set(true);
             return None;
         }
+        let u0 = self.u.as_slice();
+        if !self.known.is_empty() {
+            let x = self.params_of(u0);
+            let joins = |ssr: f64| {
+                self.known.iter().any(|k| {
+                    ssr >= k.ssr * (1.0 - self.tolerance)
+                        && (0..x.len())
+                            .all(|j| near(&self.specs[j], x[j], k.values[j], k.std_errors[j]))
+                })
+            };
+            // the point is the last one accepted, and the Jacobian's base point: its
+            // residuals are at hand (cached by the analysis' problems), not counted again
+            if let Ok(r) = evaluate(self.residuals, self.specs, &x, Some(self.n)) {
+                if joins(r.iter().map(|v| v * v).sum()) {
+                    self.joined.set(true);
+                    return None;
+                }
+            }
+        }
         self.jacobians.set(self.jacobians.get() + 1);
         self.evaluations.set(self.evaluations.get() + p + 1);
-        let u0 = self.u.as_slice();
         let steps: Vec<f64> = u0
             .iter()
             .map(|u| self.diff_step * u.abs().max(1.0))
@@ -735,6 +789,26 @@ pub fn fit(
     params: &[ParamSpec],
     opts: &FitOptions,
 ) -> Result<FitResult, FitError> {
+    fit_joining(problem, params, opts, &[])?.ok_or_else(|| FitError::Numerical {
+        reason: "joined an optimum though none was given".into(),
+        params: format_params(params, &[]),
+    })
+}
+
+/// [`fit`] of one start among several: `known` holds the results of the other starts'
+/// fits of the same problem. At each point it accepts (before its Jacobian) the fit
+/// stops and returns `Ok(None)` when the point is near a known optimum in every
+/// parameter (within [`JOIN_RADIUS`], relative or in `ln x` for a log-scale one, or
+/// within [`JOIN_STD_ERRORS`] of its standard error) and its SSR is not below that optimum's by more than
+/// [`FitOptions::tolerance`] (relative): it has joined that optimum's basin, where it
+/// would converge to the same values within the fit's own tolerances. A multi-start fit
+/// thus pays for each basin once.
+pub fn fit_joining(
+    problem: &dyn Residuals,
+    params: &[ParamSpec],
+    opts: &FitOptions,
+    known: &[FitResult],
+) -> Result<Option<FitResult>, FitError> {
     if params.is_empty() {
         return Err(FitError::NoParameters);
     }
@@ -771,6 +845,9 @@ pub fn fit(
     }
     let target = Problem {
         residuals: problem,
+        tolerance: opts.tolerance,
+        known,
+        joined: Cell::new(false),
         specs: params,
         transforms,
         u: na::DVector::from_vec(u0),
@@ -795,6 +872,9 @@ pub fn fit(
         return Err(e);
     }
     let x = target.params_of(target.u.as_slice());
+    if target.joined.get() {
+        return Ok(None);
+    }
     let converged = match &report.termination {
         TerminationReason::ResidualsZero
         | TerminationReason::Orthogonal
@@ -817,7 +897,7 @@ pub fn fit(
         ));
     }
     let u = uncertainties(problem, params, &x, n, opts.diff_step)?;
-    Ok(FitResult {
+    Ok(Some(FitResult {
         names: params.iter().map(|s| s.name.clone()).collect(),
         values: x,
         std_errors: u.std_errors,
@@ -832,7 +912,7 @@ pub fn fit(
         evaluations: target.evaluations.get() + u.evaluations,
         converged,
         termination,
-    })
+    }))
 }
 
 /// What [`uncertainties`] finds at the optimum.

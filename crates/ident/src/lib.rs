@@ -17,7 +17,9 @@ pub use dataset::{
     RigSpec, Segment, SweepDataset, SweepRun, Tensioner, WindowAlignment,
 };
 pub use error::IdentError;
-pub use fitting::{fit, FitError, FitOptions, FitResult, ParamSpec, ResidualError, Residuals};
+pub use fitting::{
+    fit, fit_joining, FitError, FitOptions, FitResult, ParamSpec, ResidualError, Residuals,
+};
 pub use metrics::MetricsError;
 pub use sensors::{Encoder, GaussianNoise, SensorError, ENCODER_RESOLUTION_RAD};
 pub mod analysis;

@@ -10,33 +10,94 @@ use super::compare::dft;
 use super::prepare::Prepared;
 use crate::dataset::DatasetKind;
 use crate::error::IdentError;
-use crate::fitting::{fit, FitOptions, FitResult, ResidualError, Residuals};
+use crate::fitting::{fit, fit_joining, FitOptions, FitResult, ResidualError, Residuals};
 use crate::model::Model;
 use crate::sim;
 
-struct Problem<'p, 'a> {
+/// Most bytes of simulated channels a [`SimCache`] keeps (for an arm dataset of four
+/// 8 s runs, one model's simulation is 0.36 MB).
+const SIM_CACHE_BYTES: usize = 32 << 20;
+
+/// The simulations of one model (one set of effects and fixed numbers) at the free
+/// values `x` ([`Model::with_values`]) already made during one fit, by the bits of `x`:
+/// the fit asks for the same point several times (the start it picked from the grid, the
+/// optimiser's first evaluation, the point of every forward-difference Jacobian, which
+/// is the last point it accepted, the optimum again for the uncertainties and the
+/// result), and a simulation is deterministic, so a point simulated once is reused
+/// bit for bit whatever the threads. Least recently used points go first past
+/// [`SIM_CACHE_BYTES`]; errors are not kept.
+struct SimCache<'p, 'a> {
     prep: &'p Prepared<'a>,
     model: &'p Model,
+    entries: std::sync::Mutex<Vec<(Vec<u64>, std::sync::Arc<Vec<Vec<f64>>>)>>,
 }
 
-impl Residuals for Problem<'_, '_> {
+impl<'p, 'a> SimCache<'p, 'a> {
+    fn new(prep: &'p Prepared<'a>, model: &'p Model) -> Self {
+        Self {
+            prep,
+            model,
+            entries: std::sync::Mutex::new(Vec::new()),
+        }
+    }
+
+    /// The compared channel of every run of the model at the free values `x`.
+    fn simulate(&self, x: &[f64]) -> Result<std::sync::Arc<Vec<Vec<f64>>>, IdentError> {
+        let key: Vec<u64> = x.iter().map(|v| v.to_bits()).collect();
+        {
+            let mut entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
+            if let Some(k) = entries.iter().position(|(k, _)| *k == key) {
+                let hit = entries.remove(k);
+                let sims = hit.1.clone();
+                entries.push(hit);
+                return Ok(sims);
+            }
+        }
+        let sims = std::sync::Arc::new(
+            self.prep
+                .simulate(&self.model.with_values(x, self.prep.runs.len()))?,
+        );
+        let bytes = |s: &Vec<Vec<f64>>| 8 * s.iter().map(Vec::len).sum::<usize>();
+        let mut entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
+        if !entries.iter().any(|(k, _)| *k == key) {
+            entries.push((key, sims.clone()));
+            let mut total: usize = entries.iter().map(|(_, s)| bytes(s)).sum();
+            while total > SIM_CACHE_BYTES && entries.len() > 1 {
+                total -= bytes(&entries.remove(0).1);
+            }
+        }
+        Ok(sims)
+    }
+
+    /// The sum of squared residuals at `x`, infinite where the model fails.
+    fn ssr(&self, x: &[f64]) -> f64 {
+        self.simulate(x)
+            .map_or(f64::INFINITY, |s| self.prep.ssr(&s))
+    }
+}
+
+struct Problem<'c, 'p, 'a> {
+    cache: &'c SimCache<'p, 'a>,
+}
+
+impl Residuals for Problem<'_, '_, '_> {
     fn residuals(&self, params: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
-        let m = self.model.with_values(params, self.prep.runs.len());
-        let sims = self.prep.simulate(&m)?;
-        *out = self.prep.residuals_of(&sims);
+        let sims = self.cache.simulate(params)?;
+        *out = self.cache.prep.residuals_of(&sims);
         Ok(())
     }
 
     fn error_groups(&self) -> Option<Vec<usize>> {
-        self.prep.error_groups()
+        self.cache.prep.error_groups()
     }
 
     fn refined_residuals(&self, params: &[f64], out: &mut Vec<f64>) -> Result<bool, ResidualError> {
-        let m = self.model.with_values(params, self.prep.runs.len());
-        let Some(sims) = self.prep.simulate_refined(&m) else {
+        let prep = self.cache.prep;
+        let m = self.cache.model.with_values(params, prep.runs.len());
+        let Some(sims) = prep.simulate_refined(&m) else {
             return Ok(false);
         };
-        *out = self.prep.residuals_of(&sims?);
+        *out = prep.residuals_of(&sims?);
         Ok(true)
     }
 }
@@ -130,10 +191,10 @@ impl Residuals for FrfProblem<'_, '_> {
 /// analytic start, the hidden ones at their starting values until scanned), and the
 /// best point is kept.
 fn starting_values(
-    prep: &Prepared<'_>,
-    model: &Model,
+    cache: &SimCache<'_, '_>,
     scan_hidden: bool,
 ) -> Result<Vec<Vec<f64>>, IdentError> {
+    let (prep, model) = (cache.prep, cache.model);
     let specs = model.fit_specs(prep.runs.len());
     let mut x0: Vec<f64> = specs.iter().map(|s| s.initial).collect();
     let slots = model.free_slots(prep.runs.len());
@@ -239,12 +300,7 @@ fn starting_values(
             })
             .collect();
         if scan_hidden && !hidden.is_empty() {
-            let sim_cost = |x: &Vec<f64>| -> f64 {
-                let m = model.with_values(x, prep.runs.len());
-                prep.simulate(&m)
-                    .map(|s| prep.ssr(&s))
-                    .unwrap_or(f64::INFINITY)
-            };
+            let sim_cost = |x: &Vec<f64>| -> f64 { cache.ssr(x) };
             for &g in &hidden {
                 x0[gridded[g]] = specs[gridded[g]].initial;
             }
@@ -304,15 +360,7 @@ fn starting_values(
         if alt[0] != all[0] {
             all.extend(alt);
         }
-        let costs: Vec<f64> = all
-            .par_iter()
-            .map(|x| {
-                let m = model.with_values(x, prep.runs.len());
-                prep.simulate(&m)
-                    .map(|s| prep.ssr(&s))
-                    .unwrap_or(f64::INFINITY)
-            })
-            .collect();
+        let costs: Vec<f64> = all.par_iter().map(|x| cache.ssr(x)).collect();
         let mut order: Vec<usize> = (0..all.len()).filter(|&k| costs[k].is_finite()).collect();
         order.sort_by(|&a, &b| costs[a].total_cmp(&costs[b]).then(a.cmp(&b)));
         // Multi-start: the best grid point with the baseline's constants, the same
@@ -365,12 +413,13 @@ fn starting_values(
 /// candidate can be decisive then, and the time-domain fits (of a non-linear law above
 /// all) are the dearest part of a diagnosis.
 pub fn screen_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, IdentError> {
-    let starts = starting_values(prep, model, false)?;
+    let cache = SimCache::new(prep, model);
+    let starts = starting_values(&cache, false)?;
     let scored: Vec<Result<(Model, Vec<Vec<f64>>, f64), IdentError>> = starts
         .par_iter()
         .map(|x| {
             let m = model.with_values(x, prep.runs.len());
-            let sims = prep.simulate(&m)?;
+            let sims = cache.simulate(x)?.to_vec();
             let ssr = prep.ssr(&sims);
             Ok((m, sims, ssr))
         })
@@ -412,6 +461,14 @@ pub enum Start {
 /// rig then steps its ropes by Newton's method, ~50x the linear rig's cost.
 pub const DEAR_EVALUATIONS_PER_PARAM: usize = 6;
 
+/// Most simulations of every run of an arm dataset that the least squares of one start
+/// may spend, Jacobians included, per free parameter plus one. On
+/// `example_arm_joint_friction` every start that converged took at most 21 (82
+/// evaluations for 3 parameters); one start of `extra_retardation` crawled along the
+/// valley of its two constants for 457 (88 Jacobians) without converging, a quarter of
+/// the whole diagnosis, and ended worse than the other starts.
+pub const ARM_EVALUATIONS_PER_PARAM: usize = 30;
+
 /// Fits the free parameters of `model` to the dataset, from the search of starting
 /// values ([`Start::Search`]).
 pub fn fit_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, IdentError> {
@@ -424,30 +481,55 @@ pub fn fit_model_from(
     model: &Model,
     start: Start,
 ) -> Result<Fitted, IdentError> {
-    let sims0 = prep.simulate(model)?;
-    let (nrmse_before, noise_floor) = prep.overall(&sims0);
-    let own: Vec<f64> = model
-        .fit_specs(prep.runs.len())
+    let cache = SimCache::new(prep, model);
+    let n_runs = prep.runs.len();
+    let own: Vec<f64> = model.fit_specs(n_runs).iter().map(|s| s.initial).collect();
+    // The model itself is the model at `own` unless a value sat on a bound (the specs
+    // start strictly inside).
+    let raw: Vec<f64> = model
+        .free_slots(n_runs)
         .iter()
-        .map(|s| s.initial)
+        .map(|s| {
+            let p = model.param(s);
+            s.run.map_or(p.value, |r| p.value_for(r))
+        })
         .collect();
+    let sims0 = if raw == own {
+        cache.simulate(&own)?
+    } else {
+        std::sync::Arc::new(prep.simulate(model)?)
+    };
+    let (nrmse_before, noise_floor) = prep.overall(&sims0);
     let mut starts = match start {
         Start::Own => vec![own.clone()],
-        Start::Search => starting_values(prep, model, true)?,
+        Start::Search => starting_values(&cache, true)?,
     };
     if starts.len() == 1 && starts[0] != own {
         // a searched start that simulates farther from the data than the model's own
         // values gives way to them
-        let searched = prep.simulate(&model.with_values(&starts[0], prep.runs.len()));
-        if searched.is_ok_and(|s| prep.ssr(&s) > prep.ssr(&sims0)) {
+        if cache
+            .simulate(&starts[0])
+            .is_ok_and(|s| prep.ssr(&s) > prep.ssr(&sims0))
+        {
             starts[0] = own;
         }
     }
     let mut best: Option<(Model, Option<FitResult>, f64)> = None;
+    // Optima of the starts fitted so far (values, SSR; converged fits only): a later
+    // start that comes near one stops there (`fit_joining`).
+    let mut known: Vec<FitResult> = Vec::new();
+    // Starts already fitted, as the fit starts them (strictly inside the bounds): two
+    // grid points that differ only on a bound start the same fit.
+    let mut started: Vec<Vec<u64>> = Vec::new();
     for start in &starts {
         let model_start = model.with_values(start, prep.runs.len());
         let model = &model_start;
         let specs = model.fit_specs(prep.runs.len());
+        let key: Vec<u64> = specs.iter().map(|s| s.initial.to_bits()).collect();
+        if started.contains(&key) {
+            continue;
+        }
+        started.push(key);
         let dear = prep.kind == DataKind::SineSweep
             && model.law_for_run(0).is_ok_and(|(l, _)| !l.is_linear());
         let (fitted_model, fit_res) = if specs.is_empty() {
@@ -460,13 +542,22 @@ pub fn fit_model_from(
                 diff_step: 1e-5,
                 max_evaluations: if dear {
                     DEAR_EVALUATIONS_PER_PARAM * (specs.len() + 1)
+                } else if prep.kind == DataKind::ArmMoves {
+                    ARM_EVALUATIONS_PER_PARAM * (specs.len() + 1)
                 } else {
                     usize::MAX
                 },
             };
-            let problem = Problem { prep, model };
-            match fit(&problem, &specs, &opts) {
-                Ok(r) => (model.with_values(&r.values, prep.runs.len()), Some(r)),
+            let problem = Problem { cache: &cache };
+            match fit_joining(&problem, &specs, &opts, &known) {
+                // joined the basin of a start fitted before
+                Ok(None) => continue,
+                Ok(Some(r)) => {
+                    if r.converged {
+                        known.push(r.clone());
+                    }
+                    (model.with_values(&r.values, prep.runs.len()), Some(r))
+                }
                 Err(e) if best.is_none() && starts.len() == 1 => return Err(e.into()),
                 Err(_) => continue,
             }
@@ -479,7 +570,10 @@ pub fn fit_model_from(
     let (fitted_model, fit_res, _) = best.ok_or(IdentError::NoStartFitted {
         starts: starts.len(),
     })?;
-    let sims = prep.simulate(&fitted_model)?;
+    let sims = match &fit_res {
+        Some(r) => cache.simulate(&r.values)?.to_vec(),
+        None => prep.simulate(&fitted_model)?,
+    };
     let (nrmse, _) = prep.overall(&sims);
     let ssr = prep.ssr(&sims);
     Ok(Fitted {

@@ -167,6 +167,10 @@ pub struct Prepared<'a> {
     pub plant: Box<dyn Plant + 'a>,
     /// Sub-steps per sample of the plant's sweeps.
     pub substeps: usize,
+    /// Runs simulated so far through [`Self::simulate_channels`] (every simulation of
+    /// fit, compare and diagnose but the sweeps' refined ones): the work of a diagnosis,
+    /// whatever the machine's load.
+    simulations: std::sync::atomic::AtomicUsize,
 }
 
 impl<'a> Prepared<'a> {
@@ -275,6 +279,7 @@ impl<'a> Prepared<'a> {
             runs,
             plant: plant_for(ds, substeps),
             substeps,
+            simulations: std::sync::atomic::AtomicUsize::new(0),
         })
     }
 
@@ -316,8 +321,24 @@ impl<'a> Prepared<'a> {
 
     /// Simulates `model` on run `r`: every channel the run measured.
     pub fn simulate_channels(&self, model: &Model, r: usize) -> Result<Channels, IdentError> {
-        let params = model.plant_params(r)?;
-        self.plant.simulate(&params, r)
+        self.simulate_params(&model.plant_params(r)?, r)
+    }
+
+    /// Simulates run `r` with the plant numbers `params` (counted as
+    /// [`Self::simulate_channels`] is).
+    pub(crate) fn simulate_params(
+        &self,
+        params: &crate::model::PlantParams,
+        r: usize,
+    ) -> Result<Channels, IdentError> {
+        self.simulations
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.plant.simulate(params, r)
+    }
+
+    /// Runs simulated so far (one per run and model; see the field).
+    pub fn simulations(&self) -> usize {
+        self.simulations.load(std::sync::atomic::Ordering::Relaxed)
     }
 
     /// Residuals over the analysed samples of every run, concatenated: run by run, each

@@ -322,7 +322,7 @@ impl TermFit<'_, '_, '_> {
         (0..prep.runs.len())
             .into_par_iter()
             .map(|r| {
-                let y = prep.plant.simulate(&self.plant(x, r)?, r)?.into_primary();
+                let y = prep.simulate_params(&self.plant(x, r)?, r)?.into_primary();
                 Ok(match &self.term.sensor {
                     Some(s) => (s.output)(&x[self.n_base..], &prep.runs[r].time_s, &y),
                     None => y,
