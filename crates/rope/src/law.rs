@@ -27,7 +27,10 @@
 //! unconditionally stable for any rope and any `dt`, second-order accurate, and the
 //! unknown end tension solves one scalar monotone equation: closed form for linear
 //! laws (a piecewise-linear function of the end strain: slack / elastic / plastic),
-//! safeguarded Newton when an effect makes an element non-linear.
+//! safeguarded Newton when an effect makes an element non-linear. When the head spring
+//! (without c1) is the only non-linear element, the Newton runs on the head strain
+//! through the spring law's closed-form inverse (one exponential per iteration, no
+//! logarithm; [`RopeStepper::tension_piece`]).
 
 use serde::{Deserialize, Serialize};
 
@@ -785,10 +788,10 @@ impl RopeStepper {
             if !(next > lo && next < hi) {
                 next = 0.5 * (lo + hi);
             }
-            if next == z {
+            z = next;
+            if hi - lo <= 4.0 * f64::EPSILON * hi {
                 break;
             }
-            z = next;
         }
         let (f, kt) = self.law.head_tension_stiffness(z);
         (f, kt / (1.0 + c * kt))
