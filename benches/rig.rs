@@ -1,5 +1,6 @@
 //! Rig benchmarks (issue: rope laws and rig): one rig step with four-element ropes, the
-//! same with elastic ropes (the MuJoCo anchor's rope), and the whole 49-392 N Dyneema2
+//! same with elastic ropes (the MuJoCo anchor's rope), with ropes that stiffen with
+//! tension (catalog law and table), and the whole 49-392 N Dyneema2
 //! bode scenario. Run: `cargo bench --bench rig`.
 
 use std::hint::black_box;
@@ -8,13 +9,21 @@ use std::path::Path;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 
 use longreach_drive::{RigModel, RigSpec};
-use longreach_rope::{Catalog, LawKind, RopeLaw};
+use longreach_rope::{Catalog, LawKind, RopeLaw, Table};
 use longreach_scenario::BodeScenario;
 
 fn rig(rope: &str, law: LawKind, damping: f64) -> RigModel {
     let params = Catalog::builtin().get(rope).unwrap().clone();
     let law = RopeLaw::from_params(&params, law).unwrap();
     RigModel::new(RigSpec::paper(rope, law, damping, 147.0), 1e-3).unwrap()
+}
+
+/// The four-element Dyneema2 rig with its head spring made non-linear by `set`.
+fn stiffening(set: impl Fn(&mut RopeLaw)) -> RigModel {
+    let params = Catalog::builtin().get("dyneema2").unwrap().clone();
+    let mut law = RopeLaw::from_params(&params, LawKind::FourElement).unwrap();
+    set(&mut law);
+    RigModel::new(RigSpec::paper("dyneema2", law, 0.05, 147.0), 1e-3).unwrap()
 }
 
 fn bench_step(c: &mut Criterion) {
@@ -30,6 +39,25 @@ fn bench_step(c: &mut Criterion) {
         (
             "elastic_stainless1",
             rig("stainless1", LawKind::Elastic, 0.01),
+        ),
+        // Non-linear ropes: the head spring stiffens with tension (catalog law
+        // `k1 (1 + b f)`, b of example_sweep_stiffening's fit; and a saturating table),
+        // each rope step solved for the head strain in closed form.
+        (
+            "stiffening_dyneema2",
+            stiffening(|law| law.stiffening_per_n = 7.7e-4),
+        ),
+        (
+            "stiffness_table_dyneema2",
+            stiffening(|law| {
+                law.stiffness_table = Some(
+                    Table::new(
+                        &[0.0, 67.0, 151.0, 202.0, 317.0, 600.0],
+                        &[1.0, 1.03, 1.17, 1.26, 1.35, 1.36],
+                    )
+                    .unwrap(),
+                )
+            }),
         ),
     ] {
         let amp = 4.5f64.to_radians();

@@ -170,7 +170,8 @@ fn broken_dataset_fails_clearly_and_writes_nothing() {
     assert!(!j.exists());
 }
 
-/// Issue 3 acceptance on the example sweeps through the CLI (~1-2 min on 2 cores):
+/// Issue 3 acceptance on the example sweeps through the CLI, and issue 17's (the refined
+/// law within 1.5x the noise floor, a second pass names nothing; ~3-4 min on 2 cores):
 /// `cargo test --test cli -- --ignored --nocapture ident_cli::`.
 #[test]
 #[ignore]
@@ -204,6 +205,21 @@ fn stiffening_example_names_the_effect_and_error_falls_3x() {
     assert!(ok, "{err}");
     let after = json(&cj)["nrmse"].as_f64().unwrap();
     assert!(after * 3.0 <= base, "{after} vs {base}");
+    // issue 17: the refined law reaches the noise floor, and a second pass on the
+    // written model names nothing more
+    let floor = d["baseline"]["noise_floor_nrmse"].as_f64().unwrap();
+    assert!(after <= 1.5 * floor, "{after} vs floor {floor}");
+    let dj2 = dir.path().join("d2.json");
+    let (ok, _, err) = longreach(&[
+        "diagnose",
+        ds.to_str().unwrap(),
+        "--model",
+        m.to_str().unwrap(),
+        "--json",
+        dj2.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(json(&dj2)["missing_effect"].is_null());
 }
 
 /// Arm datasets end to end: `synth --arm` writes one (a copy of the scenario inside),

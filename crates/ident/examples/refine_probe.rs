@@ -1,5 +1,6 @@
 //! Times the shape-free refinement of a model's effect on a dataset:
-//! `cargo run --release -p longreach-ident --example refine_probe -- DATASET MODEL.toml`.
+//! `cargo run --release -p longreach-ident --example refine_probe -- DATASET MODEL.toml`;
+//! a third argument `sim` stops after the simulation (to count its instructions).
 use std::time::Instant;
 
 use longreach_ident::analysis::{fit_model, refine_shape, Prepared};
@@ -19,6 +20,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         t.elapsed().as_secs_f64(),
         prep.overall(&sims).0
     );
+    if args.get(3).is_some_and(|a| a == "sim") {
+        return Ok(());
+    }
     let t = Instant::now();
     let f = fit_model(&prep, &model)?;
     println!(

@@ -27,7 +27,10 @@
 //! unconditionally stable for any rope and any `dt`, second-order accurate, and the
 //! unknown end tension solves one scalar monotone equation: closed form for linear
 //! laws (a piecewise-linear function of the end strain: slack / elastic / plastic),
-//! safeguarded Newton when an effect makes an element non-linear.
+//! safeguarded Newton when an effect makes an element non-linear. When the head spring
+//! (without c1) is the only non-linear element, the Newton runs on the head strain
+//! through the spring law's closed-form inverse (one exponential per iteration, no
+//! logarithm; [`RopeStepper::tension_piece`]).
 
 use serde::{Deserialize, Serialize};
 
@@ -335,6 +338,35 @@ impl RopeLaw {
         }
     }
 
+    /// Tension of the head spring at strain `e1` and its tangent stiffness there, from
+    /// one exponential: the spring law's inverse in closed form (`(exp(k1 b e) - 1)/b`
+    /// and `k1 exp(k1 b e)`; per segment for a table, [`Table::inverse_integral_inv_value`]).
+    #[inline]
+    pub fn head_tension_stiffness(&self, e1: f64) -> (f64, f64) {
+        let e = e1.max(0.0);
+        if let Some(t) = &self.stiffness_table {
+            let (f, g) = t.inverse_integral_inv_value(self.k1_n * e);
+            return (f, self.k1_n * g);
+        }
+        let b = self.stiffening_per_n;
+        if b == 0.0 {
+            (self.k1_n * e, self.k1_n)
+        } else {
+            let x = (self.k1_n * b * e).exp_m1();
+            (x / b, self.k1_n * (1.0 + x))
+        }
+    }
+
+    /// Largest slope of the head spring's tangent stiffness against its tension,
+    /// `k1 max |g'(f)|` [1 per unit strain]: times the tangent stiffness it bounds
+    /// `d^2 f / d e1^2` (the error bound of [`RopeStepper`]'s closed-form solve).
+    fn head_curvature(&self) -> f64 {
+        match &self.stiffness_table {
+            Some(t) => self.k1_n * t.max_abs_slope(),
+            None => self.k1_n * self.stiffening_per_n,
+        }
+    }
+
     /// Tangent stiffness of the head spring at tension `f` [N per unit strain].
     #[inline]
     pub fn head_stiffness(&self, tension_n: f64) -> f64 {
@@ -471,6 +503,12 @@ pub struct RopeStepper {
     /// Weights of the head when it has internal damping (a Kelvin element k1 || c1).
     head_hold: Option<Hold>,
     linear: bool,
+    /// The head spring (without c1) is the only non-linear element: the step is solved
+    /// for the head strain with the spring law's closed-form inverse
+    /// ([`Self::solve_head`]).
+    head_only: bool,
+    /// [`RopeLaw::head_curvature`].
+    head_curvature: f64,
     /// Linear laws: the step's constant compliance [1/N], its inverse, and the inverse
     /// with the ratchet's kp spring added (plastic flow).
     compliance: f64,
@@ -536,6 +574,8 @@ impl RopeStepper {
         Ok(Self {
             n_kelvin: law.kelvin.len(),
             linear: law.is_linear(),
+            head_only: law.stiffens() && law.c1_n_s == 0.0 && !law.creeps_nonlinearly(),
+            head_curvature: law.head_curvature(),
             compliance,
             inv_compliance: 1.0 / compliance,
             inv_plastic_compliance: 1.0 / (compliance + inv_kp),
@@ -694,8 +734,67 @@ impl RopeStepper {
                 Piece::Plastic,
             );
         }
-        let (f, k) = self.solve_nonlinear(p, strain);
+        let (f, k) = if self.head_only {
+            self.solve_head(p, strain)
+        } else {
+            self.solve_nonlinear(p, strain)
+        };
         (f, k, Piece::Nonlinear)
+    }
+
+    /// The step of a law whose only non-linear element is the head spring (no c1, linear
+    /// creep): `rest + compliance f + head_strain(f) + ep = strain`, solved for the head
+    /// strain on the ratchet's locked piece (`ep = ep0`), then, when the tension exceeds
+    /// the ratchet's yield, on its sliding piece (`ep = f / kp`: kp joins the chain).
+    #[inline]
+    fn solve_head(&self, p: &PreparedStep, strain: f64) -> (f64, f64) {
+        let (f, k) = self.solve_head_piece(p.compliance, strain - p.slack_strain(), p.f0);
+        match self.law.kp_n {
+            Some(kp) if f > p.yield_n => {
+                self.solve_head_piece(p.compliance + 1.0 / kp, strain - p.rest, p.f0)
+            }
+            _ => (f, k),
+        }
+    }
+
+    /// The head strain `z` in `[0, u]` with `z + c T(z) = u` (`u > 0`, `c >= 0`, `T` the
+    /// head spring's tension, in closed form: [`RopeLaw::head_tension_stiffness`]), by
+    /// Newton from the `z` that leaves the tension `guess` (the step's start) in the
+    /// linear compliance, bisection as the safeguard. For a spring that never softens
+    /// `z + c T(z)` is convex and increasing, so Newton never leaves `[0, u]`; each
+    /// iteration costs one exponential and no logarithm. It stops once the tension's
+    /// error after the update, bounded by the second-order term `kt k1 max|g'| dz^2`
+    /// (the Taylor remainder of `T`, and the distance of `z + dz` from the root), is
+    /// below `1e-14 (1 + f)`. Returns the tension and d(tension)/d(strain).
+    #[inline]
+    fn solve_head_piece(&self, c: f64, u: f64, guess: f64) -> (f64, f64) {
+        let (mut lo, mut hi) = (0.0_f64, u);
+        let mut z = (u - c * guess.max(0.0)).clamp(0.0, u);
+        for _ in 0..200 {
+            let (f, kt) = self.law.head_tension_stiffness(z);
+            let phi = z + c * f - u;
+            if phi > 0.0 {
+                hi = z;
+            } else {
+                lo = z;
+            }
+            let dz = -phi / (1.0 + c * kt);
+            if kt * self.head_curvature * dz * dz <= 1e-14 * (1.0 + f) {
+                let f1 = (f + kt * dz).max(0.0);
+                let kt1 = self.law.head_stiffness(f1);
+                return (f1, kt1 / (1.0 + c * kt1));
+            }
+            let mut next = z + dz;
+            if !(next > lo && next < hi) {
+                next = 0.5 * (lo + hi);
+            }
+            z = next;
+            if hi - lo <= 4.0 * f64::EPSILON * hi {
+                break;
+            }
+        }
+        let (f, kt) = self.law.head_tension_stiffness(z);
+        (f, kt / (1.0 + c * kt))
     }
 
     /// Safeguarded Newton on the monotone step residual.
@@ -809,5 +908,82 @@ impl RopeStepper {
             .map(|(el, e)| 0.5 * el.k_n * e * e)
             .sum();
         length_m * (head + kelvin)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The closed-form head solve ([`RopeStepper::solve_head`]) against the general
+    /// safeguarded Newton on the step residual, step by step along strain histories
+    /// that go slack, load past the ratchet's yield and swing fast: equal within the
+    /// solvers' tolerance, tensions and slopes.
+    #[test]
+    fn closed_form_head_solve_matches_the_general_newton() {
+        let table = |x: &[f64], y: &[f64]| Some(Table::new(x, y).unwrap());
+        let base = RopeLaw::four_element(7.29e4 * 1.5, 1.65e7, 8.9e5, 1.47e6);
+        let laws = [
+            RopeLaw {
+                stiffening_per_n: 7.7e-4,
+                ..base.clone()
+            },
+            RopeLaw {
+                stiffening_per_n: 0.05,
+                ..RopeLaw::elastic(7.29e4)
+            },
+            RopeLaw {
+                stiffness_table: table(
+                    &[0.0, 30.0, 67.0, 110.0, 151.0, 202.0, 260.0, 317.0],
+                    &[1.0, 1.01, 1.03, 1.1, 1.17, 1.26, 1.3, 1.35],
+                ),
+                ..base.clone()
+            },
+            // a table that softens (falling values) and stiffens steeply
+            RopeLaw {
+                stiffness_table: table(&[0.0, 20.0, 100.0, 300.0], &[1.0, 0.4, 3.0, 5.0]),
+                ..base.clone()
+            },
+            RopeLaw {
+                stiffening_per_n: 2e-3,
+                ..RopeLaw::flory(7.29e4, 1.65e7, 8.9e5, 1.47e6, 3e4)
+            },
+            RopeLaw {
+                stiffness_table: table(&[0.0, 100.0, 400.0], &[1.0, 2.0, 2.2]),
+                ..RopeLaw::flory(7.29e4, 1.65e7, 8.9e5, 1.47e6, 3e4)
+            },
+        ];
+        let mut slack = 0;
+        for (n, law) in laws.iter().enumerate() {
+            for dt in [1.25e-3, 0.1] {
+                let st = RopeStepper::new(law.clone(), dt).unwrap();
+                assert!(st.head_only && !st.linear, "law {n}");
+                let mut s = st.rest_state(150.0, if law.kp_n.is_some() { 200.0 } else { 0.0 });
+                let e0 = s.strain;
+                for i in 0..4000 {
+                    let t = i as f64 * dt;
+                    // 0.1 to 12 Hz, swinging from slack to well past the rest strain
+                    let w = 2.0 * std::f64::consts::PI * (0.1 + 3.0 * (i % 1000) as f64 / 250.0);
+                    let strain = e0 * (1.0 + 1.3 * (w * t).sin()) + 2e-3 * (i / 1000) as f64;
+                    let p = st.prepare(&s);
+                    if strain > p.slack_strain() {
+                        let (f, k) = st.solve_head(&p, strain);
+                        let (fr, kr) = st.solve_nonlinear(&p, strain);
+                        assert!(
+                            (f - fr).abs() <= 1e-12 * (1.0 + fr),
+                            "law {n}, dt {dt}, step {i}: {f} vs {fr}"
+                        );
+                        assert!(
+                            (k - kr).abs() <= 1e-9 * kr,
+                            "law {n}, step {i}: {k} vs {kr}"
+                        );
+                    }
+                    st.commit(&p, &mut s, strain);
+                    assert!(s.tension_n.is_finite());
+                    slack += usize::from(s.is_slack());
+                }
+            }
+        }
+        assert!(slack > 1000, "{slack} slack steps");
     }
 }

@@ -205,8 +205,17 @@ impl Table {
     /// The `x >= 0` at which [`Self::integral_inv`] reaches `v >= 0` (its inverse: the
     /// tension of that spring at strain `v`).
     pub fn inverse_integral_inv(&self, v: f64) -> f64 {
+        self.inverse_integral_inv_value(v).0
+    }
+
+    /// [`Self::inverse_integral_inv`] and the value of the table there, from one search
+    /// and one exponential: within segment `i` the inverse is
+    /// `x = x_i + y_i (exp(m r) - 1) / m` and the value `y_i exp(m r)`, `r` the part of
+    /// `v` beyond the knot (the tension and the tangent stiffness of the spring).
+    #[inline]
+    pub fn inverse_integral_inv_value(&self, v: f64) -> (f64, f64) {
         if v <= 0.0 {
-            return 0.0;
+            return (0.0, self.y[0]);
         }
         let mut i = 0;
         while i + 1 < self.n && v >= self.inv[i + 1] {
@@ -215,11 +224,19 @@ impl Table {
         let (xi, y0, m) = (self.x[i], self.y[i], self.slope_of(i));
         let r = v - self.inv[i];
         if (m * r).abs() <= 1e-12 {
-            xi + r * y0
+            (xi + r * y0, y0 + m * r * y0)
         } else {
             // ln(1 + m d / y0) / m = r  =>  d = y0 (exp(m r) - 1) / m
-            xi + y0 * (m * r).exp_m1() / m
+            let e = (m * r).exp_m1();
+            (xi + y0 * e / m, y0 + y0 * e)
         }
+    }
+
+    /// The largest `|slope|` of any segment (0 for a constant table).
+    pub fn max_abs_slope(&self) -> f64 {
+        (0..self.n)
+            .map(|i| self.slope_of(i).abs())
+            .fold(0.0, f64::max)
     }
 }
 

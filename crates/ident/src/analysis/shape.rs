@@ -9,7 +9,8 @@
 //!   bulk keeps knots too (a stiffness law's shape there sets the strain everywhere
 //!   above).
 //! * **Start**: the parametric law's values at the knots ([`Effect::curve`]), so the
-//!   table starts where the catalog's formula ended.
+//!   table starts where the catalog's formula ended; each larger number of knots starts
+//!   from the previous table's fit (its values at the new knots, its other parameters).
 //! * **Fit**: every free parameter of the model together with the table's values, by
 //!   least squares on the simulation from the parametric fit's values
 //!   ([`fit_model_from`], [`Start::Own`]); a law that never falls is fitted through its
@@ -173,9 +174,26 @@ pub fn refine_shape(
         .collect();
     let mut fits: Vec<(usize, f64, Fitted)> = Vec::new();
     for (knots, y) in &tables {
-        let sh = ShapeUse::new(effect, shape, knots, y, true)?;
-        let model = fitted.model.with_shape(e, sh);
+        // From the previous number of knots' fit where there is one: its table at the
+        // new knots and its other values (the larger table starts where the smaller
+        // one ended, not from the catalog law again).
+        let (base, y) = match fits.last() {
+            Some((_, _, last)) => {
+                let prev = last.model.effects[e]
+                    .shape
+                    .as_ref()
+                    .and_then(|sh| sh.table_for(0).ok());
+                match prev {
+                    Some(t) => (&last.model, knots.iter().map(|&x| t.eval(x)).collect()),
+                    None => (&fitted.model, y.clone()),
+                }
+            }
+            None => (&fitted.model, y.clone()),
+        };
+        let sh = ShapeUse::new(effect, shape, knots, &y, true)?;
+        let model = base.with_shape(e, sh);
         let f = fit_model_from(prep, &model, Start::Own)?;
+
         let p = f.model.fit_specs(n_runs).len();
         let b = bic(f.ssr, p, n);
         // more knots only while the criterion improves
