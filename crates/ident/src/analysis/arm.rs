@@ -286,17 +286,7 @@ fn extreme_at(time_s: &[f64], r: &[f64], i: usize) -> (f64, f64) {
 
 /// The simulated channels of every run of `ds` with `model` (in parallel, run order).
 pub fn simulate_arm(ds: &Dataset, model: &Model) -> Result<Vec<Channels>, IdentError> {
-    use rayon::prelude::*;
-    let DatasetKind::ArmMoves(am) = &ds.kind else {
-        return Err(IdentError::NotAnArm {
-            kind: ds.kind.name(),
-        });
-    };
-    let plant = ArmPlant::new(am);
-    (0..am.runs.len())
-        .into_par_iter()
-        .map(|r| plant.simulate(&model.plant_params(r)?, r))
-        .collect()
+    per_run(ds, model, |plant, params, r| plant.simulate(params, r))
 }
 
 /// [`simulate_arm`], and the model arm of every run with its coordinates at every
@@ -305,6 +295,18 @@ pub fn simulate_arm_poses(
     ds: &Dataset,
     model: &Model,
 ) -> Result<Vec<(Channels, ArmPoses)>, IdentError> {
+    per_run(ds, model, |plant, params, r| {
+        plant.simulate_with_poses(params, r)
+    })
+}
+
+/// `f` on every run of the arm dataset `ds` with `model`'s numbers for that run (in
+/// parallel, results in run order).
+fn per_run<T: Send>(
+    ds: &Dataset,
+    model: &Model,
+    f: impl Fn(&ArmPlant, &crate::model::PlantParams, usize) -> Result<T, IdentError> + Sync,
+) -> Result<Vec<T>, IdentError> {
     use rayon::prelude::*;
     let DatasetKind::ArmMoves(am) = &ds.kind else {
         return Err(IdentError::NotAnArm {
@@ -314,7 +316,7 @@ pub fn simulate_arm_poses(
     let plant = ArmPlant::new(am);
     (0..am.runs.len())
         .into_par_iter()
-        .map(|r| plant.simulate_with_poses(&model.plant_params(r)?, r))
+        .map(|r| f(&plant, &model.plant_params(r)?, r))
         .collect()
 }
 
