@@ -49,9 +49,11 @@ impl Effect for LinkFlexibility {
     fn site(&self) -> Site {
         Site::Link
     }
-    fn applies_to(&self, _kind: DataKind) -> bool {
-        // The rig's sweeps, relaxation and cyclic tests have no link to bend.
-        false
+    fn applies_to(&self, kind: DataKind) -> bool {
+        // The rig's sweeps, relaxation and cyclic tests have no link to bend; on arm
+        // moves the arm plant scales the scenario's flexible links (`[[flex]]`) and
+        // leaves the effect out of the candidates of a rigid arm (no E I to scale).
+        kind == DataKind::ArmMoves
     }
     fn on_link(&self, args: Args<'_>, link: &mut LinkBending) -> Result<bool, DriveError> {
         link.ei_n_m2 *= args.values[0];

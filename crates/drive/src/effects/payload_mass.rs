@@ -45,7 +45,7 @@ impl Effect for PayloadMass {
     fn applies_to(&self, _kind: DataKind) -> bool {
         // Rig sweeps and rope specimens carry no payload; on arm moves (`arm_moves`) the
         // arm plant builds each run's payload from the scenario and the run's
-        // `payload_kg` and does not apply link-site effects yet.
+        // `payload_kg` and does not apply payload effects yet.
         false
     }
     fn on_payload(&self, args: Args<'_>, payload: &mut Payload) -> Result<(), DriveError> {

@@ -204,6 +204,13 @@ pub fn diagnose(
         .iter()
         .copied()
         .filter(|e| e.applies_to(prep.kind) && !base.model.has_effect(*e))
+        .filter(|e| match prep.plant.excludes(*e) {
+            Some(why) => {
+                notes.push(format!("Not a candidate: {why}. "));
+                false
+            }
+            None => true,
+        })
         .collect();
     // At the noise floor no candidate can be decisive: screen them (starting values,
     // one simulation each) instead of fitting them in the time domain.

@@ -10,7 +10,10 @@
 //!   pair's);
 //! - pair-site effects (`relay_friction`) act on every pair, joint-site effects
 //!   (`joint_friction`) at every driven joint, with the same values;
-//! - sensor-site effects act on the channels they name.
+//! - sensor-site effects act on the channels they name;
+//! - link-site effects that act on a link's bending (`link_flexibility`) act on every
+//!   flexible link of the scenario (`[[flex]]`, the scenario's own link effects kept),
+//!   and are refused on an arm without flexible links (no `E I` to scale).
 //!
 //! A run starts at rest in the static equilibrium at its first commanded pose (the
 //! scenario's `initial_q_rad` for joints without a transmission). The commands are the
@@ -23,7 +26,7 @@ use std::borrow::Cow;
 
 use longreach_arm::scenario::{self, ArmScenario};
 use longreach_arm::{ArmSpec, Command, DrivenArm, DrivenState};
-use longreach_drive::effects::{Applied, DataKind, Site};
+use longreach_drive::effects::{Applied, DataKind, Effect, LinkBending, Site};
 use longreach_drive::transmission::PairSpec;
 use longreach_drive::InputSignal;
 
@@ -175,12 +178,14 @@ impl<'a> ArmPlant<'a> {
                 b.apply(v, &mut p).map_err(|e| err(e.to_string()))?;
             }
             pair.law = p.law;
-            for a in params.rope_effects.iter().chain(
+            for a in
                 params
-                    .effects
+                    .rope_effects
                     .iter()
-                    .filter(|a| a.effect.site() != Site::Joint && a.effect.site() != Site::Sensor),
-            ) {
+                    .chain(params.effects.iter().filter(|a| {
+                        !matches!(a.effect.site(), Site::Joint | Site::Sensor | Site::Link)
+                    }))
+            {
                 a.apply_to_pair(pair)
                     .map_err(|e| err(format!("effect {}: {e}", a.effect.name())))?;
                 pair.effects.push(a.effect.name().to_string());
@@ -199,6 +204,29 @@ impl<'a> ArmPlant<'a> {
                 joint_effects.push((pair.joint, a.clone()));
             }
         }
+        let mut flex_links = parts.flex_links.clone();
+        for a in params
+            .effects
+            .iter()
+            .filter(|a| a.effect.site() == Site::Link)
+        {
+            if !bends_links(a.effect) {
+                continue;
+            }
+            if flex_links.is_empty() {
+                return Err(err(rigid_arm_reason(a.effect.name())));
+            }
+            for l in &mut flex_links {
+                let mut b = LinkBending {
+                    ei_n_m2: l.ei_n_m2,
+                    damping_ratio: l.damping_ratio,
+                };
+                a.apply_to_link(&mut b)
+                    .map_err(|e| err(format!("effect {}: {e}", a.effect.name())))?;
+                l.ei_n_m2 = b.ei_n_m2;
+                l.damping_ratio = b.damping_ratio;
+            }
+        }
         let (initial, commands) = run_commands(&parts.spec, &parts.pairs, &parts.initial_q_rad, r)
             .map_err(|e| err(e.to_string()))?;
         DrivenArm::with_joint_effects(
@@ -209,9 +237,31 @@ impl<'a> ArmPlant<'a> {
             initial,
             dt_s,
         )
-        .and_then(|arm| arm.with_flexible_links(parts.flex_links.clone()))
+        .and_then(|arm| arm.with_flexible_links(flex_links))
         .map_err(|e| err(e.to_string()))
     }
+}
+
+/// Whether `effect` acts on a flexible link's bending (its `on_link` hook, probed
+/// with its default values).
+fn bends_links(effect: &'static dyn Effect) -> bool {
+    let values = effect.params().iter().map(|p| p.default).collect();
+    let mut probe = LinkBending {
+        ei_n_m2: 1.0,
+        damping_ratio: 0.0,
+    };
+    Applied::new(effect, values)
+        .and_then(|a| a.apply_to_link(&mut probe))
+        .unwrap_or(false)
+}
+
+/// Why a link-bending effect has nothing to act on in an arm without flexible links.
+fn rigid_arm_reason(effect: &str) -> String {
+    format!(
+        "{effect} scales the bending stiffness of the arm's flexible links, and the \
+         dataset's arm scenario has none ([[flex]], docs/arm.md): a rigid arm has no E I to \
+         scale"
+    )
 }
 
 /// The initial pose and the commands of run `r`: every driven joint starts at its first
@@ -350,6 +400,17 @@ impl Plant for ArmPlant<'_> {
 
     fn runs(&self) -> usize {
         self.ds.runs.len()
+    }
+
+    fn excludes(&self, effect: &dyn Effect) -> Option<String> {
+        let rigid = self
+            .parts
+            .iter()
+            .all(|p| p.as_ref().map_or(true, |p| p.flex_links.is_empty()));
+        (effect.site() == Site::Link
+            && rigid
+            && longreach_drive::effects::find(effect.name()).is_some_and(bends_links))
+        .then(|| rigid_arm_reason(effect.name()))
     }
 
     /// The compared channel ([`ARM_STACKED`]), then every measured channel of the run

@@ -76,6 +76,13 @@ pub trait Plant: Send + Sync + std::fmt::Debug {
     /// Number of runs.
     fn runs(&self) -> usize;
 
+    /// Why `effect`, applicable to the plant's kind of data, has nothing to act on in
+    /// this plant (`diagnose` leaves it out of the candidates and says why); `None`:
+    /// it has.
+    fn excludes(&self, _effect: &dyn longreach_drive::effects::Effect) -> Option<String> {
+        None
+    }
+
     /// Simulates run `run` with the numbers `params` (the model's for that run,
     /// [`crate::model::Model::plant_params`]): every channel the run measured, one
     /// value per sample, the compared channel first.

@@ -377,3 +377,94 @@ fn arm_diagnose_names_joint_friction_and_nothing_on_the_control() {
         }
     }
 }
+
+/// `link_flexibility` on arm data (issue 19 item 4): hidden in a flexible arm's moves
+/// (every `[[flex]]` link's E I at 0.6 of the scenario's), `diagnose` names it and fits
+/// its scale within 3%; on a rigid arm it is no candidate (no E I to scale), says so,
+/// and a model that holds it is refused.
+#[test]
+fn arm_diagnose_names_link_flexibility_only_on_a_flexible_arm() {
+    use longreach_drive::effects;
+    use longreach_ident::analysis::{diagnose, Prepared};
+    const EI_SCALE: f64 = 0.6;
+    let dir = tempfile::tempdir().unwrap();
+    let e = effects::find("link_flexibility").unwrap();
+    let mut opt = ArmMovesOptions::new(root().join("scenarios/flex_dyneema2_base_step.toml"), 3);
+    opt.duration_s = 1.5;
+    opt.moves = vec![ArmMove {
+        joint: "j2".into(),
+        move_rad: 0.05,
+        start_s: 0.2,
+        payload_kg: None,
+    }];
+    let plan = arm_plan(&opt).unwrap();
+    let mut truth = Model::baseline(&plan).unwrap().with_effect(e);
+    truth.effects[0].params[0].value = EI_SCALE;
+    let path = dir.path().join("flex");
+    arm_moves(&truth, &plan, &opt)
+        .unwrap()
+        .write(&path, "link_flexibility hidden")
+        .unwrap();
+    let ds = Dataset::load(&path).unwrap();
+    let prep = Prepared::new(&ds).unwrap();
+    let t = std::time::Instant::now();
+    let (d, base, _) = diagnose(&prep, &Model::baseline(&ds).unwrap()).unwrap();
+    eprintln!(
+        "flexible: {:.1} s; baseline {:.4} (floor {:.4}); {}\n{}",
+        t.elapsed().as_secs_f64(),
+        base.nrmse,
+        base.noise_floor,
+        d.candidates
+            .iter()
+            .map(|c| format!(
+                "{} {:.4} ({:.1}) {:?}",
+                c.effect, c.nrmse, c.score, c.params
+            ))
+            .collect::<Vec<_>>()
+            .join(", "),
+        d.explanation
+    );
+    assert_eq!(
+        d.missing_effect.as_deref(),
+        Some("link_flexibility"),
+        "{}",
+        d.explanation
+    );
+    let s = d.candidates[0].params["ei_scale"];
+    assert!(
+        (s / EI_SCALE - 1.0).abs() < 0.03,
+        "ei_scale {s} vs {EI_SCALE}"
+    );
+
+    // A rigid arm: no candidate, the reason given, a model holding it refused.
+    let mut opt = ArmMovesOptions::new(root().join(SCENARIO), 4);
+    opt.duration_s = 0.6;
+    opt.moves = vec![ArmMove {
+        joint: "j5".into(),
+        move_rad: 0.05,
+        start_s: 0.1,
+        payload_kg: None,
+    }];
+    let plan = arm_plan(&opt).unwrap();
+    let base = Model::baseline(&plan).unwrap();
+    let path = dir.path().join("rigid");
+    arm_moves(&base, &plan, &opt)
+        .unwrap()
+        .write(&path, "rigid control")
+        .unwrap();
+    let ds = Dataset::load(&path).unwrap();
+    let prep = Prepared::new(&ds).unwrap();
+    assert!(prep.plant.excludes(e).is_some());
+    let (d, _, _) = diagnose(&prep, &Model::baseline(&ds).unwrap()).unwrap();
+    assert!(
+        d.candidates.iter().all(|c| c.effect != "link_flexibility")
+            && d.explanation.contains("no E I to scale"),
+        "{:?}\n{}",
+        d.candidates.iter().map(|c| &c.effect).collect::<Vec<_>>(),
+        d.explanation
+    );
+    let msg = simulate_arm(&ds, &Model::baseline(&ds).unwrap().with_effect(e))
+        .unwrap_err()
+        .to_string();
+    assert!(msg.contains("no E I to scale"), "{msg}");
+}

@@ -3,6 +3,7 @@
 //! test file is a module; filter with its name, e.g. `-- cyclic::`.
 
 mod arm;
+mod arm_confusion;
 mod cyclic;
 mod dataset_errors;
 mod diagnose_loop;
