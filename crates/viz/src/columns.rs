@@ -463,11 +463,7 @@ impl Columns {
             });
             let cols = LineStrips3D::update_fields()
                 .with_strips(strips)
-                .with_colors(
-                    s.colors
-                        .iter()
-                        .map(|c| Color::from_unmultiplied_rgba(c[0], c[1], c[2], c[3])),
-                )
+                .with_colors(s.colors.iter().map(rgba))
                 .columns(s.counts.iter().copied());
             send(
                 &s.entity,
@@ -478,11 +474,7 @@ impl Columns {
         for s in &self.points {
             let cols = Points3D::update_fields()
                 .with_positions(s.points.iter().copied())
-                .with_colors(
-                    s.colors
-                        .iter()
-                        .map(|c| Color::from_unmultiplied_rgba(c[0], c[1], c[2], c[3])),
-                )
+                .with_colors(s.colors.iter().map(rgba))
                 .columns(s.counts.iter().copied());
             send(
                 &s.entity,
@@ -492,11 +484,7 @@ impl Columns {
         }
         for (entity, counts, colors) in &self.colors {
             let cols = LineStrips3D::update_fields()
-                .with_colors(
-                    colors
-                        .iter()
-                        .map(|c| Color::from_unmultiplied_rgba(c[0], c[1], c[2], c[3])),
-                )
+                .with_colors(colors.iter().map(rgba))
                 .columns(counts.iter().copied());
             send(
                 entity,
@@ -541,6 +529,11 @@ fn row_ids_after(id: ChunkId, n: usize) -> FixedSizeBinaryArray {
         row = row.next();
     }
     FixedSizeBinaryArray::new(16, Buffer::from_vec(bytes), None)
+}
+
+/// A colour of the frame buffers (`[r, g, b, a]`, not premultiplied) as Rerun's.
+fn rgba(c: &[u8; 4]) -> Color {
+    Color::from_unmultiplied_rgba(c[0], c[1], c[2], c[3])
 }
 
 #[cfg(test)]
