@@ -115,6 +115,20 @@ pub struct Columns {
     names_sent: bool,
 }
 
+impl Strips {
+    /// An empty channel of `radius_m` at `entity`.
+    fn new(entity: impl Into<String>, radius_m: f64) -> Self {
+        Self {
+            entity: entity.into(),
+            radius_m: radius_m as f32,
+            counts: Vec::new(),
+            lengths: Vec::new(),
+            points: Vec::new(),
+            colors: Vec::new(),
+        }
+    }
+}
+
 impl Columns {
     /// Channels indexed by a duration timeline `timeline` in seconds.
     pub fn on_duration(timeline: &'static str) -> Self {
@@ -173,27 +187,13 @@ impl Columns {
 
     /// Adds a channel of coloured line strips of `radius_m` at `entity`.
     pub fn strips(&mut self, entity: impl Into<String>, radius_m: f64) -> StripsId {
-        self.strips.push(Strips {
-            entity: entity.into(),
-            radius_m: radius_m as f32,
-            counts: Vec::new(),
-            lengths: Vec::new(),
-            points: Vec::new(),
-            colors: Vec::new(),
-        });
+        self.strips.push(Strips::new(entity, radius_m));
         StripsId(self.strips.len() - 1)
     }
 
     /// Adds a channel of coloured points of `radius_m` at `entity`.
     pub fn points(&mut self, entity: impl Into<String>, radius_m: f64) -> PointsId {
-        self.points.push(Strips {
-            entity: entity.into(),
-            radius_m: radius_m as f32,
-            counts: Vec::new(),
-            lengths: Vec::new(),
-            points: Vec::new(),
-            colors: Vec::new(),
-        });
+        self.points.push(Strips::new(entity, radius_m));
         PointsId(self.points.len() - 1)
     }
 
