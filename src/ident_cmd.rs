@@ -457,6 +457,15 @@ pub fn run_compare(a: &CompareArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// The verdict in a few words: the named effect(s), or "none found".
+fn missing_words(d: &analysis::Diagnosis) -> String {
+    if d.missing_effects.is_empty() {
+        "none found".into()
+    } else {
+        d.missing_effects.join(" and ")
+    }
+}
+
 /// Runs `diagnose`.
 pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
     let (ds, model) = load(&a.data)?;
@@ -563,10 +572,34 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
         }
         println!("{t}");
     }
-    println!(
-        "missing effect: {}",
-        d.missing_effect.as_deref().unwrap_or("none found")
-    );
+    if !d.pairs.is_empty() {
+        let mut t = Table::new();
+        t.set_header(vec![
+            "pair",
+            "NRMSE",
+            "score (dBIC)",
+            "explains",
+            "decisive",
+        ]);
+        for c in &d.pairs {
+            t.add_row(vec![
+                c.effect.replace('+', " + "),
+                format!("{:.4}", c.nrmse),
+                format!("{:.1}", c.score),
+                format!("{:.0}%", 100.0 * c.explained.clamp(0.0, 1.0)),
+                c.decisive.to_string(),
+            ]);
+        }
+        println!("{t}");
+    }
+    println!("missing effect: {}", missing_words(&d));
+    if let Some(l) = &d.lead {
+        println!(
+            "lead (not named): {} at {:.2}x the noise floor",
+            l.effects.join(" + "),
+            l.ratio_to_floor
+        );
+    }
     println!("{}", d.explanation);
     if let Some(p) = &a.data.json {
         write_json(p, &d)?;
@@ -577,7 +610,11 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
             "written by `longreach diagnose` for dataset {}\nbaseline NRMSE {:.5}; with {}: {}",
             ds.title,
             d.baseline.nrmse,
-            d.missing_effect.as_deref().unwrap_or("no effect"),
+            if d.missing_effects.is_empty() {
+                "no effect".to_string()
+            } else {
+                d.missing_effects.join(" and ")
+            },
             d.nrmse_after.map_or("-".into(), |x| format!("{x:.5}"))
         );
         let text = fitted.model.to_toml_with_fit(&comment, fitted.fit.as_ref());
@@ -585,7 +622,17 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
     }
     if let Some(dir) = &a.report {
         let m = winner.as_ref().map_or(&base, |w| w);
-        write_report(dir, &prep, &d.comparison, &base.sims, Some((&d, &m.sims)))?;
+        let after = match &winner {
+            Some(w) => Some(analysis::compare(&prep, &w.model, &w.sims).map_err(message)?),
+            None => None,
+        };
+        write_report(
+            dir,
+            &prep,
+            &d.comparison,
+            &base.sims,
+            Some((&d, &m.sims, after.as_ref())),
+        )?;
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -736,7 +783,11 @@ fn write_report(
     prep: &Prepared<'_>,
     c: &Comparison,
     sims: &[Vec<f64>],
-    diag: Option<(&analysis::Diagnosis, &Vec<Vec<f64>>)>,
+    diag: Option<(
+        &analysis::Diagnosis,
+        &Vec<Vec<f64>>,
+        Option<&analysis::Comparison>,
+    )>,
 ) -> Result<()> {
     crate::output::output_dir(dir, "--report")?;
     let mut md = format!("# {} — model vs measurement\n\n", c.dataset);
@@ -774,20 +825,50 @@ fn write_report(
             }
         }
     }
-    if let Some((d, _)) = diag {
+    write_where_and_checks(c, &mut md);
+    if let Some((d, _, _)) = diag {
         md.push_str(&format!(
-            "\n## Diagnosis\n\nMissing effect: **{}**\n\n{}\n\n| effect | NRMSE | score | explains |\n|---|---|---|---|\n",
-            d.missing_effect.as_deref().unwrap_or("none found"),
+            "\n## Diagnosis\n\nMissing effect: **{}**\n\n{}\n\n",
+            missing_words(d),
             d.explanation
         ));
-        for k in &d.candidates {
+        if let Some(l) = &d.lead {
             md.push_str(&format!(
-                "| {} | {:.4} | {:.1} | {:.0}% |\n",
-                k.effect,
-                k.nrmse,
-                k.score,
-                100.0 * k.explained.clamp(0.0, 1.0)
+                "Lead, not named: **{}** ({:.2}x the noise floor, explains {:.0}% of the excess error).\n\n",
+                l.effects.join(" + "),
+                l.ratio_to_floor,
+                100.0 * l.explained.clamp(0.0, 1.0)
             ));
+        }
+        let floor = d.baseline.noise_floor_nrmse.max(f64::MIN_POSITIVE);
+        md.push_str(
+            "Candidates (each fitted with the baseline; score: BIC improvement over the baseline; explains: share of the baseline's squared error above the noise floor it removes):\n\n| effect | NRMSE | x floor | score | explains | decisive |\n|---|---|---|---|---|---|\n",
+        );
+        for k in d.candidates.iter().chain(&d.pairs) {
+            md.push_str(&format!(
+                "| {} | {:.4} | {:.2} | {:.1} | {:.0}% | {} |\n",
+                k.effect.replace('+', " + "),
+                k.nrmse,
+                k.nrmse / floor,
+                k.score,
+                100.0 * k.explained.clamp(0.0, 1.0),
+                if k.decisive { "**yes**" } else { "" }
+            ));
+        }
+        if !d.signatures.is_empty() {
+            md.push_str(
+                "\n### Residual signatures (what the baseline still misses)\n\n| signature | simplest term | size | removes of the excess |\n|---|---|---|---|\n",
+            );
+            for g in &d.signatures {
+                md.push_str(&format!(
+                    "| {} | {} | {} {} | {:.0}% |\n",
+                    g.evidence,
+                    g.term,
+                    fmt(g.size),
+                    g.unit,
+                    100.0 * g.share_removed
+                ));
+            }
         }
         md.push_str(
             "\n### Fitted values and 95% intervals\n\n| model | parameter | value | 95% interval |\n|---|---|---|---|\n",
@@ -823,7 +904,7 @@ fn write_report(
             continue;
         }
         let f: Vec<f64> = pts.iter().map(|p| p.frequency_hz).collect();
-        let curves = vec![
+        let mut curves = vec![
             BodeCurve {
                 label: "measured".into(),
                 frequency_hz: f.clone(),
@@ -845,6 +926,21 @@ fn write_report(
                 color: 1,
             },
         ];
+        if let Some((d, _, Some(ac))) = diag {
+            let q: Vec<_> = ac.frequency.iter().filter(|f| f.run == run.name).collect();
+            if !d.missing_effects.is_empty() && q.len() == pts.len() {
+                curves.push(BodeCurve {
+                    label: format!("model + {}", d.missing_effects.join(" + ")),
+                    frequency_hz: q.iter().map(|p| p.frequency_hz).collect(),
+                    gain_db: q.iter().map(|p| p.gain_model_db).collect(),
+                    phase_deg: longreach_drive::freq::unwrap_deg(
+                        &q.iter().map(|p| p.phase_model_deg).collect::<Vec<_>>(),
+                    ),
+                    style: Style::Line,
+                    color: 2,
+                });
+            }
+        }
         let title = format!("{} {}: measured vs model", c.dataset, run.name);
         let name = format!("bode_{}.png", run.name);
         let fig = longreach_plot::bode_figure(&title, &curves);
@@ -875,10 +971,10 @@ fn write_report(
                     color: 1,
                 },
             ];
-            if let Some((d, after)) = diag {
-                if d.missing_effect.is_some() {
+            if let Some((d, after, _)) = diag {
+                if !d.missing_effects.is_empty() {
                     series.push(Series {
-                        label: "model + effect".into(),
+                        label: format!("model + {}", d.missing_effects.join(" + ")),
                         x: t.clone(),
                         y: idx.iter().map(|&i| after[ri][i]).collect(),
                         style: Style::Line,
@@ -952,12 +1048,79 @@ fn write_report(
             md.push_str("![residual spectrum](residual_spectrum.png)\n");
         }
     }
-    if let Some((d, _)) = diag {
+    if let Some((d, _, _)) = diag {
         for r in &d.refinements {
             write_law_figure(dir, r, &mut md)?;
         }
     }
     write_atomic(&dir.join("report.md"), md.as_bytes())
+}
+
+/// `report.md`'s sections on where the model fails (the largest shares of the squared
+/// error) and the residual checks.
+fn write_where_and_checks(c: &analysis::Comparison, md: &mut String) {
+    if !c.where_.is_empty() {
+        md.push_str("\n## Where it fails\n\n| run | test frequency | window | share of the squared error |\n|---|---|---|---|\n");
+        for w in c.where_.iter().take(8) {
+            md.push_str(&format!(
+                "| {} | {} | {:.1}-{:.1} s | {:.1}% |\n",
+                w.run,
+                w.frequency_hz.map_or("-".into(), |f| format!("{f:.2} Hz")),
+                w.start_s,
+                w.end_s,
+                100.0 * w.share
+            ));
+        }
+    }
+    let r = &c.residual;
+    md.push_str(&format!(
+        "\n## Residual checks\n\n| check | value | reading |\n|---|---|---|\n\
+         | whiteness (Ljung-Box, 20 lags) | Q = {:.1}, p = {:.2e} | {} |\n\
+         | correlation with the input | {:.2} | {} |\n\
+         | correlation with the velocity's sign | {:.2} | {} |\n\
+         | correlation of the runs' error with their mean tension | {} | {} |\n\
+         | harmonics at 2f / 3f (of the output) | {:.1}% / {:.1}% | {} |\n\
+         | correlation with time (drift) | {:.2} | {} |\n",
+        r.ljung_box_q,
+        r.ljung_box_p,
+        if r.ljung_box_p < 0.05 {
+            "not white"
+        } else {
+            "white"
+        },
+        r.corr_input,
+        if r.corr_input.abs() > 0.3 {
+            "the model misses a part of the response"
+        } else {
+            "-"
+        },
+        r.corr_velocity_sign,
+        if r.corr_velocity_sign.abs() > 0.2 {
+            "dry friction?"
+        } else {
+            "-"
+        },
+        r.corr_mean_tension
+            .map_or("-".into(), |x| format!("{x:.2}")),
+        if r.corr_mean_tension.is_some_and(|x| x.abs() > 0.7) {
+            "a law that depends on tension?"
+        } else {
+            "-"
+        },
+        100.0 * r.harmonic_2f,
+        100.0 * r.harmonic_3f,
+        if r.harmonic_2f.max(r.harmonic_3f) > 0.02 {
+            "a non-linearity"
+        } else {
+            "-"
+        },
+        r.corr_time,
+        if r.corr_time.abs() > 0.3 {
+            "drift"
+        } else {
+            "-"
+        },
+    ));
 }
 
 /// The law an effect's refinement fitted (its table, with the 95% band at the knots)

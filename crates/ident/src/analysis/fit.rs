@@ -10,7 +10,9 @@ use super::compare::dft;
 use super::prepare::Prepared;
 use crate::dataset::DatasetKind;
 use crate::error::IdentError;
-use crate::fitting::{fit, fit_joining, FitOptions, FitResult, ResidualError, Residuals};
+use crate::fitting::{
+    fit, fit_joining, FitOptions, FitResult, ParamSpec, ResidualError, Residuals,
+};
 use crate::model::Model;
 use crate::sim;
 
@@ -177,6 +179,77 @@ impl Residuals for FrfProblem<'_, '_> {
     }
 }
 
+/// The starting grid's values of a parameter: `npts` points spread over its bounds
+/// (log-spaced on a log scale, at most six decades above the lower bound), then its
+/// starting value.
+fn grid_axis(s: &ParamSpec, npts: usize) -> Vec<f64> {
+    let (lo, hi) = (
+        s.lower,
+        s.upper.min(if s.log_scale {
+            s.lower * 1e6
+        } else {
+            f64::INFINITY
+        }),
+    );
+    let mut v: Vec<f64> = (0..npts)
+        .map(|k| {
+            let a = (k as f64 + 0.5) / npts as f64;
+            if s.log_scale && lo > 0.0 {
+                (lo.ln() + a * (hi.ln() - lo.ln())).exp()
+            } else {
+                lo + a * (hi - lo)
+            }
+        })
+        .collect();
+    v.push(s.initial);
+    v
+}
+
+/// The model's values improved one coordinate at a time on the simulation: every
+/// effect parameter and `k1_scale` scanned in turn along its starting grid's axis
+/// ([`grid_axis`], 9 points) from the current point, the best point kept each time
+/// (parallel simulations, deterministic). For a start that the analytic response
+/// cannot place: a pair of effects each fitted alone made up for the other's absence.
+pub fn scan_coordinates(prep: &Prepared<'_>, model: &Model) -> Result<Model, IdentError> {
+    let n_runs = prep.runs.len();
+    let specs = model.fit_specs(n_runs);
+    let slots = model.free_slots(n_runs);
+    let cache = SimCache::new(prep, model);
+    let mut x: Vec<f64> = specs.iter().map(|s| s.initial).collect();
+    let mut best = cache.ssr(&x);
+    for i in 0..specs.len() {
+        let scanned = matches!(slots[i].owner, crate::model::Owner::Effect(_))
+            || (slots[i].owner == crate::model::Owner::Base
+                && model.base[slots[i].index].role
+                    == crate::model::Role::Base(crate::model::BaseParam::K1Scale));
+        if !scanned {
+            continue;
+        }
+        let line: Vec<Vec<f64>> = grid_axis(&specs[i], 9)
+            .into_iter()
+            .map(|v| {
+                let mut y = x.clone();
+                y[i] = v;
+                y
+            })
+            .collect();
+        let costs: Vec<f64> = line.par_iter().map(|y| cache.ssr(y)).collect();
+        if let Some(k) =
+            (0..line.len()).min_by(|&a, &b| costs[a].total_cmp(&costs[b]).then(a.cmp(&b)))
+        {
+            if costs[k] < best {
+                best = costs[k];
+                x = line[k].clone();
+            }
+        }
+    }
+    Ok(model.with_values(&x, n_runs))
+}
+
+/// Distinct minima of a sweep's starting grid refined on the analytic response and
+/// weighed by one simulation each ([`starting_values`]).
+pub const SWEEP_STARTS: usize = 4;
+
 /// Starting values: a grid over the free parameters (9 points each for sweeps, 5
 /// otherwise, plus the starting value; log-spaced where the parameter is, at most 3
 /// parameters gridded: the effect's and `k1_scale`), scored by the analytic response
@@ -213,30 +286,10 @@ fn starting_values(
     }
     let sweep = prep.kind == DataKind::SineSweep;
     let npts = if sweep { 9 } else { 5 };
-    let axis = |i: usize| -> Vec<f64> {
-        let s = &specs[i];
-        let (lo, hi) = (
-            s.lower,
-            s.upper.min(if s.log_scale {
-                s.lower * 1e6
-            } else {
-                f64::INFINITY
-            }),
-        );
-        let mut v: Vec<f64> = (0..npts)
-            .map(|k| {
-                let a = (k as f64 + 0.5) / npts as f64;
-                if s.log_scale && lo > 0.0 {
-                    (lo.ln() + a * (hi.ln() - lo.ln())).exp()
-                } else {
-                    lo + a * (hi - lo)
-                }
-            })
-            .collect();
-        v.push(s.initial);
-        v
-    };
-    let axes: Vec<Vec<f64>> = gridded.iter().map(|&i| axis(i)).collect();
+    let axes: Vec<Vec<f64>> = gridded
+        .iter()
+        .map(|&i| grid_axis(&specs[i], npts))
+        .collect();
     let total: usize = axes.iter().map(|a| a.len()).product();
     let points: Vec<Vec<f64>> = (0..total)
         .map(|mut k| {
@@ -264,29 +317,82 @@ fn starting_values(
                 }
             })
             .collect();
-        let best = (0..total)
-            .min_by(|&a, &b| costs[a].total_cmp(&costs[b]))
-            .unwrap_or(0);
-        x0 = points[best].clone();
-        let mut s2 = specs.clone();
-        for (s, &v) in s2.iter_mut().zip(&x0) {
-            s.initial = crate::fitting::strictly_inside(v, s.lower, s.upper);
-        }
-        if let Ok(r) = fit(
-            &problem,
-            &s2,
-            &FitOptions {
-                tolerance: 1e-8,
-                gtol: 1e-10,
-                patience: 60,
-                diff_step: 1e-6,
-                max_evaluations: usize::MAX,
-            },
-        ) {
-            if r.ssr <= costs[best] {
-                x0 = r.values;
+        // The analytic response is a small-signal picture (each law's tangent at the
+        // run's mean tension): where a law is non-linear, or a second effect is fitted
+        // beside it, and the ropes swing far from their mean tension, its optimum may
+        // sit in another basin than the simulation's. So the grid's best distinct
+        // minima (points not next to a better one on every axis) are each refined on it,
+        // and the start is the one that simulates closest to the data.
+        let mut order: Vec<usize> = (0..total).filter(|&k| costs[k].is_finite()).collect();
+        order.sort_by(|&a, &b| costs[a].total_cmp(&costs[b]).then(a.cmp(&b)));
+        // each grid point's rank along every gridded axis (the axes end with the
+        // starting value, out of order)
+        let ranks: Vec<Vec<usize>> = axes
+            .iter()
+            .map(|a| {
+                a.iter()
+                    .map(|v| a.iter().filter(|w| w.total_cmp(v).is_lt()).count())
+                    .collect()
+            })
+            .collect();
+        let rank_of = |mut k: usize| -> Vec<usize> {
+            axes.iter()
+                .zip(&ranks)
+                .map(|(a, r)| {
+                    let d = k % a.len();
+                    k /= a.len();
+                    r[d]
+                })
+                .collect()
+        };
+        let mut picked: Vec<usize> = Vec::new();
+        for &k in &order {
+            if picked.len() >= SWEEP_STARTS {
+                break;
+            }
+            let rk = rank_of(k);
+            let apart = picked
+                .iter()
+                .all(|&p| rank_of(p).iter().zip(&rk).any(|(a, b)| a.abs_diff(*b) > 1));
+            if apart {
+                picked.push(k);
             }
         }
+        if picked.is_empty() {
+            picked.push(0);
+        }
+        let refined: Vec<Vec<f64>> = picked
+            .par_iter()
+            .map(|&k| {
+                let mut s2 = specs.clone();
+                for (s, &v) in s2.iter_mut().zip(&points[k]) {
+                    s.initial = crate::fitting::strictly_inside(v, s.lower, s.upper);
+                }
+                match fit(
+                    &problem,
+                    &s2,
+                    &FitOptions {
+                        tolerance: 1e-8,
+                        gtol: 1e-10,
+                        patience: 60,
+                        diff_step: 1e-6,
+                        max_evaluations: usize::MAX,
+                    },
+                ) {
+                    Ok(r) if r.ssr <= costs[k] => r.values,
+                    _ => points[k].clone(),
+                }
+            })
+            .collect();
+        x0 = if refined.len() == 1 {
+            refined[0].clone()
+        } else {
+            let sim_costs: Vec<f64> = refined.par_iter().map(|x| cache.ssr(x)).collect();
+            let b = (0..refined.len())
+                .min_by(|&a, &b| sim_costs[a].total_cmp(&sim_costs[b]).then(a.cmp(&b)))
+                .unwrap_or(0);
+            refined[b].clone()
+        };
         // Gridded parameters the analytic response cannot see: the cost of every grid
         // point equals that of the point with this coordinate at its first value.
         let hidden: Vec<usize> = (0..gridded.len())
@@ -441,6 +547,18 @@ pub fn screen_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, IdentE
         ssr,
         sims,
     })
+}
+
+/// The starts the search of starting values gives `model` (for sweeps one, the grid on
+/// the analytic response refined there; otherwise up to four, from the grid simulated),
+/// as models at those values. Used where a caller weighs them against starts of its
+/// own (the pair step of [`diagnose`](fn@super::diagnose)).
+pub fn searched_starts(prep: &Prepared<'_>, model: &Model) -> Result<Vec<Model>, IdentError> {
+    let cache = SimCache::new(prep, model);
+    Ok(starting_values(&cache, true)?
+        .iter()
+        .map(|x| model.with_values(x, prep.runs.len()))
+        .collect())
 }
 
 /// Where a fit starts.

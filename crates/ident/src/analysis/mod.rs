@@ -39,12 +39,12 @@ pub use compare::{
     Where,
 };
 pub use diagnose::{
-    diagnose, BaselineSummary, Candidate, Diagnosis, FLOOR_MARGIN, MIN_EXPLAINED, MIN_SCORE,
-    MIN_SCORE_GAP, REFINE_MARGIN,
+    diagnose, BaselineSummary, Candidate, Diagnosis, Lead, FLOOR_MARGIN, MIN_EXPLAINED, MIN_SCORE,
+    MIN_SCORE_GAP, NAME_MARGIN, PAIR_CANDIDATES, REFINE_MARGIN,
 };
 pub use fit::{
-    fit_model, fit_model_from, screen_model, Fitted, Start, ARM_EVALUATIONS_PER_PARAM,
-    DEAR_EVALUATIONS_PER_PARAM,
+    fit_model, fit_model_from, scan_coordinates, screen_model, searched_starts, Fitted, Start,
+    ARM_EVALUATIONS_PER_PARAM, DEAR_EVALUATIONS_PER_PARAM,
 };
 pub use prepare::{
     noise_sigma_second_difference, primary_name, ChannelData, ChannelSums, Prepared, RunData,

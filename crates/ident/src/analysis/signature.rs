@@ -14,6 +14,7 @@
 //! | error depends on the mean tension | a stiffness per run (`k1` scaled), its log-slope against the tension | `d ln k1 / dT` [1/N] |
 //! | error depends on the amplitude | a damping per run; dry friction by the describing function `C_eq = C_v + 4 F / (pi V)` | `F` [N*m] |
 //! | drift over time | a term linear in time (common slope, each run's offset) | slope [channel unit / s] |
+//! | a periodic component the test does not drive (residual not white) | a sinusoid at the residual's dominant frequency (each run its amplitude and phase) | amplitude [channel unit], its frequency in `equivalent` |
 //!
 //! See `docs/models.md`, "Residual signatures".
 
@@ -47,6 +48,9 @@ pub enum SignatureKind {
     AmplitudeDependence,
     /// The residual correlates with time.
     Drift,
+    /// The residual holds a periodic component at a frequency the test does not drive
+    /// (a disturbance, a mode the model lacks).
+    Periodic,
 }
 
 /// The same term's size in another quantity (e.g. a dry torque as the angle offset it
@@ -117,7 +121,7 @@ impl Signature {
 /// The explanation's "Residual signature: ..." sentence.
 pub fn describe(signatures: &[Signature]) -> String {
     if signatures.is_empty() {
-        "Residual signature: no clear pattern (white-ish, no harmonics, no drift).".into()
+        "Residual signature: none of the known patterns (phase error growing with frequency, the velocity's sign, harmonics, tension or amplitude dependence, drift, a periodic component).".into()
     } else {
         let parts: Vec<String> = signatures.iter().map(Signature::sentence).collect();
         format!("Residual signature: {}.", parts.join("; "))
@@ -522,6 +526,22 @@ pub fn signatures(
             Ok(drift(b)),
         ));
     }
+    if r.ljung_box_p < 0.05 && prep.kind != DataKind::ArmMoves {
+        if let Some((t, f_hz)) = periodic(b) {
+            let (share, _) = b.shares(t.ssr_after);
+            if share >= PERIODIC_MIN_SHARE {
+                out.push(b.signature(
+                    SignatureKind::Periodic,
+                    format!(
+                        "the residual is not white (Ljung-Box p = {:.1e}) and holds a periodic component at {f_hz:.4} Hz (period {:.2} s) that the input does not drive",
+                        r.ljung_box_p,
+                        1.0 / f_hz
+                    ),
+                    Ok(t),
+                ));
+            }
+        }
+    }
     if let Some((lo, hi)) = amplitude_contrast(cmp) {
         out.push(b.signature(
             SignatureKind::AmplitudeDependence,
@@ -909,6 +929,168 @@ fn drift(b: &Base<'_, '_>) -> Term {
         equivalent: None,
         ssr_after,
     }
+}
+
+/// Least share of the excess error a periodic component must remove to be reported.
+const PERIODIC_MIN_SHARE: f64 = 0.2;
+
+/// Frequencies tried for a periodic component, log-spaced from two cycles over the
+/// longest run to a fifth of the sampling rate.
+const PERIODIC_GRID: usize = 600;
+
+/// A periodic component of the residual at a frequency the test does not drive: the
+/// frequency where the residual's power (a periodogram over the analysed samples of
+/// every run, decimated to at most 4000 samples per run) is largest, away from a
+/// sweep's test frequencies and their 2nd and 3rd harmonics (within 10%); the term is a
+/// sinusoid there with each run's own amplitude and phase (linear least squares), its
+/// size the RMS-weighted amplitude over the runs. Returns the term and the frequency.
+fn periodic(b: &Base<'_, '_>) -> Option<(Term, f64)> {
+    let prep = b.prep;
+    let res: Vec<Vec<(f64, f64)>> = prep
+        .runs
+        .iter()
+        .zip(b.sims)
+        .map(|(run, y)| {
+            let step = run.idx.len().div_ceil(4000).max(1);
+            run.idx
+                .iter()
+                .step_by(step)
+                .map(|&i| (run.time_s[i], y[i] - run.measured[i]))
+                .collect()
+        })
+        .collect();
+    let span = prep
+        .runs
+        .iter()
+        .filter_map(|r| Some(r.time_s[*r.idx.last()?] - r.time_s[*r.idx.first()?]))
+        .fold(0.0f64, f64::max);
+    let dt = prep
+        .runs
+        .iter()
+        .map(|r| r.dt_s)
+        .fold(f64::INFINITY, f64::min);
+    if !(span > 0.0 && dt.is_finite() && dt > 0.0) {
+        return None;
+    }
+    let (f_lo, f_hi) = (2.0 / span, 0.2 / dt);
+    if f_hi <= f_lo {
+        return None;
+    }
+    let driven = |f: f64| {
+        prep.runs.iter().any(|r| {
+            r.segments
+                .iter()
+                .any(|s| (1..=3).any(|h| (f / (h as f64 * s.0) - 1.0).abs() < 0.1))
+        })
+    };
+    let power = |f: f64| -> f64 {
+        let w = TAU * f;
+        res.iter()
+            .map(|e| {
+                let n = e.len().max(1) as f64;
+                let mean = e.iter().map(|x| x.1).sum::<f64>() / n;
+                let (c, s) = e.iter().fold((0.0, 0.0), |(c, s), &(t, x)| {
+                    let (sn, cs) = (w * t).sin_cos();
+                    (c + (x - mean) * cs, s + (x - mean) * sn)
+                });
+                (c * c + s * s) / n
+            })
+            .sum()
+    };
+    let grid: Vec<f64> = (0..PERIODIC_GRID)
+        .map(|k| f_lo * (f_hi / f_lo).powf(k as f64 / (PERIODIC_GRID - 1) as f64))
+        .filter(|&f| !driven(f))
+        .collect();
+    let powers: Vec<f64> = grid.par_iter().map(|&f| power(f)).collect();
+    let k = (0..grid.len()).max_by(|&a, &c| powers[a].total_cmp(&powers[c]))?;
+    // golden-section refinement between the neighbouring grid points
+    let (mut a, mut c) = (grid[k.saturating_sub(1)], grid[(k + 1).min(grid.len() - 1)]);
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    for _ in 0..30 {
+        let (x1, x2) = (c - g * (c - a), a + g * (c - a));
+        if power(x1) > power(x2) {
+            c = x2;
+        } else {
+            a = x1;
+        }
+    }
+    let f = 0.5 * (a + c);
+    let w = TAU * f;
+    // each run: offset, cos and sin by least squares (3x3 normal equations)
+    let mut ssr_after = 0.0;
+    let (mut amp2, mut n_all) = (0.0, 0.0);
+    for (run, y) in prep.runs.iter().zip(b.sims) {
+        let mut ata = [[0.0f64; 3]; 3];
+        let mut atb = [0.0f64; 3];
+        for &i in &run.idx {
+            let (sn, cs) = (w * run.time_s[i]).sin_cos();
+            let row = [1.0, cs, sn];
+            let e = y[i] - run.measured[i];
+            for p in 0..3 {
+                atb[p] += row[p] * e;
+                for q in 0..3 {
+                    ata[p][q] += row[p] * row[q];
+                }
+            }
+        }
+        let m = solve3(ata, atb)?;
+        amp2 += (m[1] * m[1] + m[2] * m[2]) * run.idx.len() as f64;
+        n_all += run.idx.len() as f64;
+        ssr_after += run
+            .idx
+            .iter()
+            .map(|&i| {
+                let (sn, cs) = (w * run.time_s[i]).sin_cos();
+                (y[i] - run.measured[i] - m[0] - m[1] * cs - m[2] * sn).powi(2)
+            })
+            .sum::<f64>();
+    }
+    let amplitude = (amp2 / n_all.max(1.0)).sqrt();
+    let unit = if prep.kind == DataKind::SineSweep {
+        "rad"
+    } else {
+        "N"
+    };
+    Some((
+        Term {
+            term: "a sinusoid at that frequency (each run its amplitude and phase), amplitude"
+                .into(),
+            note:
+                "a disturbance or a mode the model lacks: look for what oscillates at this period"
+                    .into(),
+            size: amplitude,
+            unit,
+            equivalent: Some(Equivalent {
+                what: "its frequency",
+                value: f,
+                unit: "Hz",
+            }),
+            ssr_after,
+        },
+        f,
+    ))
+}
+
+/// Solves the 3x3 system `a x = b` by Cramer's rule (`None` when singular).
+fn solve3(a: [[f64; 3]; 3], b: [f64; 3]) -> Option<[f64; 3]> {
+    let det = |m: [[f64; 3]; 3]| {
+        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+    };
+    let d = det(a);
+    if !d.is_finite() || d.abs() < 1e-300 {
+        return None;
+    }
+    let mut x = [0.0; 3];
+    for (k, xk) in x.iter_mut().enumerate() {
+        let mut m = a;
+        for r in 0..3 {
+            m[r][k] = b[r];
+        }
+        *xk = det(m) / d;
+    }
+    Some(x)
 }
 
 /// A stiffness per run: `k1` scaled per run (fitted on the analytic response, then on
