@@ -103,6 +103,51 @@ fn figures_table(c: &ArmComparison) -> Table {
     t
 }
 
+/// The simulation step of an arm dataset, chosen from the data with `model`
+/// ([`analysis::choose_arm_step`]), printed with every halving tried.
+pub fn choose_step(ds: &Dataset, model: &Model) -> Result<analysis::ArmStep> {
+    let s = analysis::choose_arm_step(ds, model).map_err(|e| anyhow!("{e}"))?;
+    println!("{}", step_words(&s));
+    Ok(s)
+}
+
+/// One line on the chosen step: its size and why.
+pub fn step_words(s: &analysis::ArmStep) -> String {
+    let tried = s
+        .trials
+        .iter()
+        .map(|t| {
+            format!(
+                "{:.4} ms: NRMSE {:.5}, halving moves the channels {:.2} sigma",
+                1e3 * t.step_s,
+                t.nrmse,
+                t.change_sigma
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("; ");
+    format!(
+        "simulation step {:.4} ms ({}; {tried}){}",
+        1e3 * s.step_s,
+        if s.converged {
+            format!(
+                "the coarsest whose halving moves the channels by <= {} sigma of their noise",
+                analysis::ARM_STEP_TOLERANCE_SIGMA
+            )
+        } else {
+            format!(
+                "the finest tried: halving it still moves the channels by more than {} sigma",
+                analysis::ARM_STEP_TOLERANCE_SIGMA
+            )
+        },
+        if s.converged {
+            ""
+        } else {
+            "; the model's own step error may show in the comparison"
+        }
+    )
+}
+
 /// Runs `compare` on an arm dataset (`path`); with `--rerun`, draws the measured and
 /// the model arm of every run and every channel, measured against model.
 pub fn run_compare_arm(
@@ -117,12 +162,19 @@ pub fn run_compare_arm(
         &format!("compare {}", path.display()),
         &rerun_args::default_rrd(None, path, "_compare"),
     )?;
+    let step = match choose_step(ds, model) {
+        Ok(s) => s,
+        Err(e) => {
+            rec.discard();
+            return Err(e);
+        }
+    };
     // With Rerun on, the simulations keep the model arm's coordinates (the same
     // channels: the states are only read).
     let simulated = if rec.is_enabled() {
-        analysis::simulate_arm_poses(ds, model).map(|v| v.into_iter().unzip())
+        analysis::simulate_arm_poses(ds, model, step.refinement).map(|v| v.into_iter().unzip())
     } else {
-        analysis::simulate_arm(ds, model).map(|s| (s, Vec::new()))
+        analysis::simulate_arm(ds, model, step.refinement).map(|s| (s, Vec::new()))
     };
     let (sims, poses): (Vec<Channels>, Vec<ArmPoses>) = match simulated {
         Ok(v) => v,
@@ -133,7 +185,10 @@ pub fn run_compare_arm(
         }
     };
     let c = match analysis::compare_arm(ds, &sims) {
-        Ok(c) => c,
+        Ok(c) => ArmComparison {
+            step: Some(step),
+            ..c
+        },
         Err(e) => {
             rec.discard();
             bail!("{e}");
@@ -163,6 +218,7 @@ pub fn log_arm_diagnosis(
     d: &analysis::Diagnosis,
     base: &Model,
     winner: Option<&Model>,
+    refinement: usize,
 ) {
     let Some(am) = analysis::arm_dataset(ds) else {
         return;
@@ -170,15 +226,17 @@ pub fn log_arm_diagnosis(
     if !rec.is_enabled() {
         return;
     }
-    let (sims, poses): (Vec<Channels>, Vec<ArmPoses>) = match analysis::simulate_arm_poses(ds, base)
-    {
-        Ok(v) => v.into_iter().unzip(),
-        Err(e) => {
-            eprintln!("rerun: simulating the baseline to draw it failed ({e}); diagnose goes on");
-            (Vec::new(), Vec::new())
-        }
-    };
-    let after = winner.and_then(|m| match analysis::simulate_arm(ds, m) {
+    let (sims, poses): (Vec<Channels>, Vec<ArmPoses>) =
+        match analysis::simulate_arm_poses(ds, base, refinement) {
+            Ok(v) => v.into_iter().unzip(),
+            Err(e) => {
+                eprintln!(
+                    "rerun: simulating the baseline to draw it failed ({e}); diagnose goes on"
+                );
+                (Vec::new(), Vec::new())
+            }
+        };
+    let after = winner.and_then(|m| match analysis::simulate_arm(ds, m, refinement) {
         Ok(s) => Some(s),
         Err(e) => {
             eprintln!(
@@ -208,6 +266,9 @@ fn write_arm_report(dir: &Path, ds: &Dataset, c: &ArmComparison, sims: &[Channel
         "# {} — model vs measurement (arm)\n\nWorst channel at **{:.2}x** its noise floor.\n\n",
         c.dataset, c.worst_ratio
     );
+    if let Some(s) = &c.step {
+        md.push_str(&format!("{}.\n\n", step_words(s)));
+    }
     md.push_str("| run | channel | NRMSE | floor | x floor | move | settling |\n|---|---|---|---|---|---|---|\n");
     for e in &c.channels {
         md.push_str(&format!(

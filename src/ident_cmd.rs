@@ -236,10 +236,23 @@ fn fit_rows(r: &longreach_ident::FitResult) -> Vec<[String; 5]> {
         .collect()
 }
 
+/// The prepared dataset; an arm's at the simulation step chosen from the data with
+/// `model` (printed).
+fn prepare<'a>(
+    ds: &'a longreach_ident::Dataset,
+    model: &Model,
+) -> Result<(Prepared<'a>, Option<analysis::ArmStep>)> {
+    let (prep, step) = analysis::prepared_at_step(ds, model).map_err(message)?;
+    if let Some(s) = &step {
+        println!("{}", crate::arm_ident_cmd::step_words(s));
+    }
+    Ok((prep, step))
+}
+
 /// Runs `fit`.
 pub fn run_fit(a: &FitArgs) -> Result<ExitCode> {
     let (ds, model) = load(&a.data)?;
-    let prep = Prepared::new(&ds).map_err(message)?;
+    let (prep, _) = prepare(&ds, &model)?;
     let f = analysis::fit_model(&prep, &model).map_err(message)?;
     let mut numbers = vec![
         ("NRMSE before".to_string(), f.nrmse_before),
@@ -473,7 +486,13 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
         &format!("diagnose {}", a.data.dataset.display()),
         &rerun_args::default_rrd(None, &a.data.dataset, "_diagnose"),
     )?;
-    let prep = Prepared::new(&ds).map_err(message)?;
+    let (prep, _) = match prepare(&ds, &model) {
+        Ok(p) => p,
+        Err(e) => {
+            rec.discard();
+            return Err(e);
+        }
+    };
     let (d, base, winner) = analysis::diagnose(&prep, &model).map_err(message)?;
     if matches!(ds.kind, longreach_ident::DatasetKind::ArmMoves(_)) {
         // The arm plant's compared channel is every channel stacked: draw the arms
@@ -484,6 +503,7 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
             &d,
             &base.model,
             winner.as_ref().map(|w| &w.model),
+            prep.arm_refinement,
         );
     } else {
         let after = winner.as_ref().map(|w| w.sims.as_slice());
@@ -791,6 +811,14 @@ fn write_report(
 ) -> Result<()> {
     crate::output::output_dir(dir, "--report")?;
     let mut md = format!("# {} — model vs measurement\n\n", c.dataset);
+    if let Some(step_s) = diag.and_then(|d| d.0.simulation_step_s) {
+        md.push_str(&format!(
+            "The arm simulated at steps of {:.4} ms (chosen from the data: the coarsest \
+             step whose halving moves the channels by at most {} sigma of their noise).\n\n",
+            1e3 * step_s,
+            analysis::ARM_STEP_TOLERANCE_SIGMA
+        ));
+    }
     md.push_str(&format!(
         "Overall NRMSE **{:.4}** (noise floor {:.4}).\n\n| run | NRMSE | floor | share |\n|---|---|---|---|\n",
         c.nrmse, c.noise_floor_nrmse

@@ -264,6 +264,13 @@ pub struct ArmScenario {
     /// The flexible links (`[[flex]]`), as given to [`DrivenArm::with_flexible_links`]:
     /// a rebuilt arm bends as the scenario's does.
     pub flex_links: Vec<crate::FlexLinkSpec>,
+    /// The payload the arm carries, kg (`[payload]`'s mass with the `[[effect]]`s'
+    /// changes), already in the spec.
+    pub payload_kg: f64,
+    /// Where a payload is (and a payload effect adds mass): a frame of the URDF and
+    /// the offset in it, m (`[payload]`'s link and offset; the tip frame's origin
+    /// without a `[payload]`).
+    pub payload_at: (String, [f64; 3]),
     /// Warnings for the user (printed once by the CLI and recorded in its JSON): what
     /// the URDF loader dropped, what `<dynamics friction>` became, a coarse time step.
     pub warnings: Vec<String>,
@@ -415,18 +422,21 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
     }
     // The payload's point: `[payload]`'s link and offset; the tip frame's origin for a
     // payload that only effects give. No payload at all: the arm as the URDF says.
-    if doc.payload.is_some() || payload.mass_kg != 0.0 {
-        let pl = doc.payload.as_ref();
-        let link = match pl {
+    let pl = doc.payload.as_ref();
+    let payload_at = (
+        match pl {
             Some(pl) => pl
                 .link
                 .clone()
                 .or_else(|| spec.links.last().map(|l| l.name.clone()))
                 .unwrap_or_default(),
             None => spec.tip.name.clone(),
-        };
-        let offset = nalgebra::Vector3::from(pl.and_then(|p| p.offset_m).unwrap_or([0.0; 3]));
-        spec.add_payload(&link, payload.mass_kg, offset)
+        },
+        pl.and_then(|p| p.offset_m).unwrap_or([0.0; 3]),
+    );
+    if doc.payload.is_some() || payload.mass_kg != 0.0 {
+        let (link, offset) = (&payload_at.0, nalgebra::Vector3::from(payload_at.1));
+        spec.add_payload(link, payload.mass_kg, offset)
             .map_err(|e| {
                 ferr(
                     match pl {
@@ -770,6 +780,8 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
         urdf_path,
         joint_effects,
         flex_links: flex,
+        payload_kg: payload.mass_kg,
+        payload_at,
         warnings,
     })
 }

@@ -349,7 +349,7 @@ mod tests {
             .join("../../data/examples/example_arm_control");
         let ds = Dataset::load(&path).unwrap();
         let model = Model::baseline(&ds).unwrap();
-        let poses = simulate_arm_poses(&ds, &model).unwrap();
+        let poses = simulate_arm_poses(&ds, &model, 1).unwrap();
         let am = arm_dataset(&ds).unwrap();
         let mut worst: f64 = 0.0;
         for (run, (_, pose)) in am.runs.iter().zip(&poses) {

@@ -42,11 +42,9 @@ impl Effect for PayloadMass {
     fn site(&self) -> Site {
         Site::Link
     }
-    fn applies_to(&self, _kind: DataKind) -> bool {
-        // Rig sweeps and rope specimens carry no payload; on arm moves (`arm_moves`) the
-        // arm plant builds each run's payload from the scenario and the run's
-        // `payload_kg` and does not apply payload effects yet.
-        false
+    fn applies_to(&self, kind: DataKind) -> bool {
+        // Rig sweeps and rope specimens carry no payload.
+        kind == DataKind::ArmMoves
     }
     fn on_payload(&self, args: Args<'_>, payload: &mut Payload) -> Result<(), DriveError> {
         check(self, args.values)?;

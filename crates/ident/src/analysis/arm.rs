@@ -134,6 +134,9 @@ pub struct ArmComparison {
     pub worst_windows: Vec<ArmWhere>,
     /// The figures of every move.
     pub figures: Vec<MoveFigures>,
+    /// The simulation step the model ran at, when it was chosen from the data
+    /// ([`choose_arm_step`]; `None`: steps of at most [`crate::plant::ARM_MAX_STEP_S`]).
+    pub step: Option<ArmStep>,
 }
 
 /// The phases of a run from its commands: first and last sample where any command
@@ -284,9 +287,17 @@ fn extreme_at(time_s: &[f64], r: &[f64], i: usize) -> (f64, f64) {
     (time_s[i] + p * dt, (b - 0.25 * (a - c) * p).abs())
 }
 
-/// The simulated channels of every run of `ds` with `model` (in parallel, run order).
-pub fn simulate_arm(ds: &Dataset, model: &Model) -> Result<Vec<Channels>, IdentError> {
-    per_run(ds, model, |plant, params, r| plant.simulate(params, r))
+/// The simulated channels of every run of `ds` with `model` (in parallel, run order),
+/// every step of at most [`crate::plant::ARM_MAX_STEP_S`] divided into `refinement`
+/// ([`choose_arm_step`]).
+pub fn simulate_arm(
+    ds: &Dataset,
+    model: &Model,
+    refinement: usize,
+) -> Result<Vec<Channels>, IdentError> {
+    per_run(ds, model, refinement, |plant, params, r| {
+        plant.simulate(params, r)
+    })
 }
 
 /// [`simulate_arm`], and the model arm of every run with its coordinates at every
@@ -294,8 +305,9 @@ pub fn simulate_arm(ds: &Dataset, model: &Model) -> Result<Vec<Channels>, IdentE
 pub fn simulate_arm_poses(
     ds: &Dataset,
     model: &Model,
+    refinement: usize,
 ) -> Result<Vec<(Channels, ArmPoses)>, IdentError> {
-    per_run(ds, model, |plant, params, r| {
+    per_run(ds, model, refinement, |plant, params, r| {
         plant.simulate_with_poses(params, r)
     })
 }
@@ -305,6 +317,7 @@ pub fn simulate_arm_poses(
 fn per_run<T: Send>(
     ds: &Dataset,
     model: &Model,
+    refinement: usize,
     f: impl Fn(&ArmPlant, &crate::model::PlantParams, usize) -> Result<T, IdentError> + Sync,
 ) -> Result<Vec<T>, IdentError> {
     use rayon::prelude::*;
@@ -313,7 +326,7 @@ fn per_run<T: Send>(
             kind: ds.kind.name(),
         });
     };
-    let plant = ArmPlant::new(am);
+    let plant = ArmPlant::with_refinement(am, refinement);
     (0..am.runs.len())
         .into_par_iter()
         .map(|r| f(&plant, &model.plant_params(r)?, r))
@@ -468,6 +481,7 @@ pub fn compare_arm(ds: &Dataset, sims: &[Channels]) -> Result<ArmComparison, Ide
         worst_ratio,
         worst_windows: windows,
         figures,
+        step: None,
     })
 }
 
@@ -477,4 +491,136 @@ pub fn arm_dataset(ds: &Dataset) -> Option<&ArmMovesDataset> {
         DatasetKind::ArmMoves(a) => Some(a),
         _ => None,
     }
+}
+
+/// The step error `compare` and `diagnose` accept on an arm, in noise standard
+/// deviations: the RMS over every sample of every measured channel (each over its
+/// noise, [`crate::plant::ARM_STACKED`]) of the change when the step is halved. The
+/// arm's step error falls as the step (first order), so the error left is about twice
+/// that change: at most 0.5 sigma, 12% on the noise floor in quadrature.
+pub const ARM_STEP_TOLERANCE_SIGMA: f64 = 0.25;
+
+pub use crate::plant::ARM_MAX_REFINEMENT;
+
+/// One halving of the arm's simulation step.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StepTrial {
+    /// Refinement of [`crate::plant::ARM_MAX_STEP_S`] (steps per 1 ms-sized step).
+    pub refinement: usize,
+    /// The longest step of any run at this refinement, s.
+    pub step_s: f64,
+    /// RMS change of every channel (over its noise) from this step to half of it.
+    pub change_sigma: f64,
+    /// The model's NRMSE against the data at this step (every channel over its noise,
+    /// [`crate::plant::ARM_STACKED`]).
+    pub nrmse: f64,
+}
+
+/// The simulation step chosen from the data ([`choose_arm_step`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ArmStep {
+    /// The refinement chosen: the coarsest whose halving changes the channels by at
+    /// most [`ARM_STEP_TOLERANCE_SIGMA`], or [`ARM_MAX_REFINEMENT`].
+    pub refinement: usize,
+    /// The longest step of any run at that refinement, s.
+    pub step_s: f64,
+    /// Whether the halving at the chosen step stayed within the tolerance (false: the
+    /// finest step tried still moved the channels by more; its change is the last
+    /// trial's).
+    pub converged: bool,
+    /// Every halving tried, coarsest first.
+    pub trials: Vec<StepTrial>,
+}
+
+/// Chooses the arm's simulation step from the data: `model` is simulated at steps of
+/// at most [`crate::plant::ARM_MAX_STEP_S`] (1 ms), then at half of that, and so on;
+/// the first step whose halving changes the channels by at most
+/// [`ARM_STEP_TOLERANCE_SIGMA`] noise standard deviations is kept (so that the
+/// simulation's own error stays below the sensors' noise), [`ARM_MAX_REFINEMENT`] at
+/// most. Each trial records the model's NRMSE at its step: it stops moving where the
+/// change does.
+pub fn choose_arm_step(ds: &Dataset, model: &Model) -> Result<ArmStep, IdentError> {
+    let DatasetKind::ArmMoves(am) = &ds.kind else {
+        return Err(IdentError::NotAnArm {
+            kind: ds.kind.name(),
+        });
+    };
+    let step_of = |k: usize| {
+        am.runs
+            .iter()
+            .map(|r| {
+                let dt = r.dt_s();
+                dt / (crate::plant::substeps_for(dt) * k) as f64
+            })
+            .fold(0.0, f64::max)
+    };
+    let measured: Vec<Vec<f64>> = am
+        .runs
+        .iter()
+        .map(|r| {
+            let w = crate::plant::stacking(r);
+            crate::plant::stack(&w, |k| r.channels[k].values.as_slice())
+        })
+        .collect();
+    let nrmse = |sims: &[Channels]| -> f64 {
+        let (mut sse, mut sst) = (0.0, 0.0);
+        for (s, m) in sims.iter().zip(&measured) {
+            let y = s.primary();
+            let mean = m.iter().sum::<f64>() / m.len().max(1) as f64;
+            sse += y.iter().zip(m).map(|(a, b)| (a - b).powi(2)).sum::<f64>();
+            sst += m.iter().map(|b| (b - mean).powi(2)).sum::<f64>();
+        }
+        if sst > 0.0 {
+            (sse / sst).sqrt()
+        } else {
+            f64::NAN
+        }
+    };
+    let mut trials = Vec::new();
+    let mut k = 1;
+    let mut coarse = simulate_arm(ds, model, k)?;
+    loop {
+        let fine = simulate_arm(ds, model, 2 * k)?;
+        let (mut ss, mut n) = (0.0, 0usize);
+        for (a, b) in coarse.iter().zip(&fine) {
+            for (x, y) in a.primary().iter().zip(b.primary()) {
+                ss += (x - y).powi(2);
+                n += 1;
+            }
+        }
+        let change_sigma = (ss / n.max(1) as f64).sqrt();
+        trials.push(StepTrial {
+            refinement: k,
+            step_s: step_of(k),
+            change_sigma,
+            nrmse: nrmse(&coarse),
+        });
+        if change_sigma <= ARM_STEP_TOLERANCE_SIGMA || 2 * k >= ARM_MAX_REFINEMENT {
+            let converged = change_sigma <= ARM_STEP_TOLERANCE_SIGMA;
+            let refinement = if converged { k } else { 2 * k };
+            return Ok(ArmStep {
+                refinement,
+                step_s: step_of(refinement),
+                converged,
+                trials,
+            });
+        }
+        k *= 2;
+        coarse = fine;
+    }
+}
+
+/// `ds` prepared for `fit`, `compare` and `diagnose`: an arm's at the step
+/// [`choose_arm_step`] chooses with `model` (returned too); other kinds as
+/// [`super::Prepared::new`] prepares them.
+pub fn prepared_at_step<'a>(
+    ds: &'a Dataset,
+    model: &Model,
+) -> Result<(super::Prepared<'a>, Option<ArmStep>), IdentError> {
+    let prep = super::Prepared::new(ds)?;
+    if !matches!(ds.kind, DatasetKind::ArmMoves(_)) {
+        return Ok((prep, None));
+    }
+    let step = choose_arm_step(ds, model)?;
+    Ok((prep.with_arm_refinement(step.refinement), Some(step)))
 }

@@ -97,6 +97,9 @@ pub struct Diagnosis {
     /// effects when it misses the data, then the best candidate's when its catalog
     /// formula leaves the data well above the floor.
     pub refinements: Vec<ShapeRefinement>,
+    /// An arm's simulation step, s (the longest of any run at the prepared data's
+    /// refinement, [`Prepared::with_arm_refinement`]); `None` for the rig and specimens.
+    pub simulation_step_s: Option<f64>,
 }
 
 /// The best explanation a diagnosis found but does not name ([`Diagnosis::lead`]).
@@ -654,6 +657,18 @@ pub fn diagnose(
         comparison: cmp,
         signatures: sigs,
         refinements,
+        simulation_step_s: match &prep.ds.kind {
+            crate::DatasetKind::ArmMoves(am) => Some(
+                am.runs
+                    .iter()
+                    .map(|r| {
+                        let dt = r.dt_s();
+                        dt / (crate::plant::substeps_for(dt) * prep.arm_refinement) as f64
+                    })
+                    .fold(0.0, f64::max),
+            ),
+            _ => None,
+        },
     };
     Ok((diag, base, winner))
 }

@@ -31,8 +31,9 @@ mod shape;
 mod signature;
 
 pub use arm::{
-    arm_dataset, compare_arm, residual_vibration, simulate_arm, simulate_arm_poses, ArmComparison,
-    ArmWhere, ChannelError, Figures, MoveFigures, ARM_WINDOW_S,
+    arm_dataset, choose_arm_step, compare_arm, prepared_at_step, residual_vibration, simulate_arm,
+    simulate_arm_poses, ArmComparison, ArmStep, ArmWhere, ChannelError, Figures, MoveFigures,
+    StepTrial, ARM_MAX_REFINEMENT, ARM_STEP_TOLERANCE_SIGMA, ARM_WINDOW_S,
 };
 pub use compare::{
     compare, Comparison, FrequencyError, ResidualChecks, RunChannelError, RunError, RunResonance,

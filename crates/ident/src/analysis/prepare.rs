@@ -19,7 +19,7 @@ use crate::dataset::{Dataset, DatasetKind};
 use crate::error::IdentError;
 pub use crate::metrics::noise_sigma_second_difference;
 use crate::model::{data_kind, Model};
-use crate::plant::{plant_for, Channels, Plant};
+use crate::plant::{arm_plant_for, plant_for, Channels, Plant};
 use crate::sensors::ENCODER_RESOLUTION_RAD;
 use crate::sim;
 
@@ -167,6 +167,9 @@ pub struct Prepared<'a> {
     pub plant: Box<dyn Plant + 'a>,
     /// Sub-steps per sample of the plant's sweeps.
     pub substeps: usize,
+    /// Refinement of an arm plant's steps ([`Self::with_arm_refinement`]; 1: steps of
+    /// at most [`crate::plant::ARM_MAX_STEP_S`]).
+    pub arm_refinement: usize,
     /// Runs simulated so far through [`Self::simulate_channels`] (every simulation of
     /// fit, compare and diagnose but the sweeps' refined ones): the work of a diagnosis,
     /// whatever the machine's load.
@@ -279,8 +282,17 @@ impl<'a> Prepared<'a> {
             runs,
             plant: plant_for(ds, substeps),
             substeps,
+            arm_refinement: 1,
             simulations: std::sync::atomic::AtomicUsize::new(0),
         })
+    }
+
+    /// The same data with an arm's simulation steps divided into `refinement` (the
+    /// step [`super::choose_arm_step`] chose); no change for other kinds.
+    pub fn with_arm_refinement(mut self, refinement: usize) -> Self {
+        self.arm_refinement = refinement.max(1);
+        self.plant = arm_plant_for(self.ds, self.substeps, self.arm_refinement);
+        self
     }
 
     /// Simulates `model` on every run (in parallel, results in run order); returns, for

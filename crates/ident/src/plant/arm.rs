@@ -13,14 +13,21 @@
 //! - sensor-site effects act on the channels they name;
 //! - link-site effects that act on a link's bending (`link_flexibility`) act on every
 //!   flexible link of the scenario (`[[flex]]`, the scenario's own link effects kept),
-//!   and are refused on an arm without flexible links (no `E I` to scale).
+//!   and are refused on an arm without flexible links (no `E I` to scale);
+//! - link-site effects that change the payload (`payload_mass`) change each run's
+//!   payload (the scenario's `[payload]` mass, or the run's `payload_kg`) at the
+//!   scenario's payload point (`[payload]` link and offset; the tip frame's origin
+//!   without one), before the dynamics, the gravity feed-forward and the statics are
+//!   built.
 //!
 //! A run starts at rest in the static equilibrium at its first commanded pose (the
 //! scenario's `initial_q_rad` for joints without a transmission). The commands are the
 //! run's `command_J_rad` columns, linearly interpolated between samples (as a `csv`
 //! command of a scenario: offsets from the first row, velocity reference the slope of
 //! the interpolation). The arm steps at the sample interval divided into
-//! [`substeps_for`] equal steps of at most [`ARM_MAX_STEP_S`].
+//! [`substeps_for`] equal steps of at most [`ARM_MAX_STEP_S`], each divided again into
+//! the plant's refinement ([`ArmPlant::with_refinement`]; `compare` and `diagnose`
+//! choose it from the data: `crate::analysis::choose_arm_step`).
 
 use std::borrow::Cow;
 
@@ -73,6 +80,10 @@ pub fn stack<'v>(weights: &[(f64, f64)], values: impl Fn(usize) -> &'v [f64]) ->
 /// Longest simulation step of the arm plant, s (the arm scenarios' 1 ms).
 pub const ARM_MAX_STEP_S: f64 = 1e-3;
 
+/// The finest refinement of [`ARM_MAX_STEP_S`] `compare` and `diagnose` try
+/// (`crate::analysis::choose_arm_step`), and the one `synth` simulates its truth at.
+pub const ARM_MAX_REFINEMENT: usize = 8;
+
 /// Steps per sample interval `dt_s`: the fewest that make each step at most
 /// [`ARM_MAX_STEP_S`].
 pub fn substeps_for(dt_s: f64) -> usize {
@@ -87,6 +98,10 @@ struct ArmParts {
     joint_effects: Vec<(usize, Applied)>,
     flex_links: Vec<longreach_arm::FlexLinkSpec>,
     initial_q_rad: Vec<f64>,
+    /// The payload the scenario gives the run (kg) and the point where payload effects
+    /// add mass: the frame and the offset in it.
+    payload_kg: f64,
+    payload_at: (String, [f64; 3]),
 }
 
 impl ArmParts {
@@ -97,6 +112,8 @@ impl ArmParts {
             joint_effects: sc.joint_effects,
             flex_links: sc.flex_links,
             initial_q_rad: sc.arm.initial_q_rad().to_vec(),
+            payload_kg: sc.payload_kg,
+            payload_at: sc.payload_at,
         }
     }
 }
@@ -110,6 +127,8 @@ pub struct ArmPlant<'a> {
     parts: Vec<Result<std::sync::Arc<ArmParts>, String>>,
     /// Each run's [`stacking`].
     weights: Vec<Vec<(f64, f64)>>,
+    /// Simulation steps per [`ARM_MAX_STEP_S`]-sized step ([`Self::with_refinement`]).
+    refinement: usize,
 }
 
 /// The scenario text with the payload mass set to `mass_kg` (the rest of `[payload]`
@@ -127,8 +146,14 @@ fn with_payload(text: &str, mass_kg: f64) -> Result<String, String> {
 }
 
 impl<'a> ArmPlant<'a> {
-    /// Compiles the dataset's scenario once per distinct payload.
+    /// Compiles the dataset's scenario once per distinct payload; steps of at most
+    /// [`ARM_MAX_STEP_S`].
     pub fn new(ds: &'a ArmMovesDataset) -> Self {
+        Self::with_refinement(ds, 1)
+    }
+
+    /// [`Self::new`] with every step divided into `refinement` (>= 1) equal steps.
+    pub fn with_refinement(ds: &'a ArmMovesDataset, refinement: usize) -> Self {
         let path = &ds.scenario_path;
         let file = path.display().to_string();
         let base = path.parent().unwrap_or(std::path::Path::new("."));
@@ -154,7 +179,12 @@ impl<'a> ArmPlant<'a> {
             parts.push(built);
         }
         let weights = ds.runs.iter().map(stacking).collect();
-        Self { ds, parts, weights }
+        Self {
+            ds,
+            parts,
+            weights,
+            refinement: refinement.max(1),
+        }
     }
 
     /// The arm of run `run` with the numbers `params`, for steps of `dt_s`.
@@ -227,10 +257,11 @@ impl<'a> ArmPlant<'a> {
                 l.damping_ratio = b.damping_ratio;
             }
         }
+        let spec = payload_changed(parts, params).map_err(err)?;
         let (initial, commands) = run_commands(&parts.spec, &parts.pairs, &parts.initial_q_rad, r)
             .map_err(|e| err(e.to_string()))?;
         DrivenArm::with_joint_effects(
-            parts.spec.clone(),
+            spec.map_or_else(|| parts.spec.clone(), |s| s),
             pairs,
             joint_effects,
             commands,
@@ -240,6 +271,34 @@ impl<'a> ArmPlant<'a> {
         .and_then(|arm| arm.with_flexible_links(flex_links))
         .map_err(|e| err(e.to_string()))
     }
+}
+
+/// The arm's spec with the payload the model's payload effects give (`None`: no such
+/// effect, or one that leaves the payload as it is): the difference from the scenario's
+/// payload added as a point mass (negative: removed) at the payload's point.
+fn payload_changed(parts: &ArmParts, params: &PlantParams) -> Result<Option<ArmSpec>, String> {
+    let mut payload = longreach_drive::effects::Payload {
+        mass_kg: parts.payload_kg,
+    };
+    let mut any = false;
+    for a in params
+        .effects
+        .iter()
+        .filter(|a| a.effect.site() == Site::Link && !bends_links(a.effect))
+    {
+        a.apply_to_payload(&mut payload)
+            .map_err(|e| format!("effect {}: {e}", a.effect.name()))?;
+        any = true;
+    }
+    let delta_kg = payload.mass_kg - parts.payload_kg;
+    if !any || delta_kg == 0.0 {
+        return Ok(None);
+    }
+    let mut spec = parts.spec.clone();
+    let (frame, offset) = &parts.payload_at;
+    spec.add_point_mass(frame, delta_kg, *offset)
+        .map_err(|e| e.to_string())?;
+    Ok(Some(spec))
 }
 
 /// Whether `effect` acts on a flexible link's bending (its `on_link` hook, probed
@@ -388,7 +447,7 @@ impl ArmPlant<'_> {
         run: usize,
     ) -> Result<(DrivenArm, usize), IdentError> {
         let dt = self.ds.runs[run].dt_s();
-        let k = substeps_for(dt);
+        let k = substeps_for(dt) * self.refinement;
         Ok((self.build(params, run, dt / k as f64)?, k))
     }
 }

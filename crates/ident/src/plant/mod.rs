@@ -29,7 +29,10 @@ use crate::sim;
 
 mod arm;
 
-pub use arm::{stack, stacking, substeps_for, ArmPlant, ArmPoses, ARM_MAX_STEP_S, ARM_STACKED};
+pub use arm::{
+    stack, stacking, substeps_for, ArmPlant, ArmPoses, ARM_MAX_REFINEMENT, ARM_MAX_STEP_S,
+    ARM_STACKED,
+};
 
 /// One simulated channel of a run, named as the dataset's column.
 #[derive(Debug, Clone, PartialEq)]
@@ -114,8 +117,15 @@ pub trait Plant: Send + Sync + std::fmt::Debug {
     }
 }
 
-/// The plant of a dataset, its sweeps simulated at the sample period over `substeps`.
+/// The plant of a dataset, its sweeps simulated at the sample period over `substeps`
+/// (an arm's at [`ARM_MAX_STEP_S`]; [`arm_plant_for`] for finer).
 pub fn plant_for(ds: &Dataset, substeps: usize) -> Box<dyn Plant + '_> {
+    arm_plant_for(ds, substeps, 1)
+}
+
+/// [`plant_for`], an arm's steps of at most [`ARM_MAX_STEP_S`] divided into
+/// `arm_refinement` ([`ArmPlant::with_refinement`]).
+pub fn arm_plant_for(ds: &Dataset, substeps: usize, arm_refinement: usize) -> Box<dyn Plant + '_> {
     match &ds.kind {
         DatasetKind::SineSweep(sw) => Box::new(RigPlant {
             sweep: sw,
@@ -123,7 +133,7 @@ pub fn plant_for(ds: &Dataset, substeps: usize) -> Box<dyn Plant + '_> {
         }),
         DatasetKind::Relaxation(rx) => Box::new(SpecimenPlant::Relaxation(rx)),
         DatasetKind::Cyclic(cy) => Box::new(SpecimenPlant::Cyclic(cy)),
-        DatasetKind::ArmMoves(am) => Box::new(ArmPlant::new(am)),
+        DatasetKind::ArmMoves(am) => Box::new(ArmPlant::with_refinement(am, arm_refinement)),
     }
 }
 

@@ -279,7 +279,8 @@ fn arm_synth_is_seeded() {
 fn arm_compare_control_is_at_its_floors() {
     let ds = Dataset::load(example("example_arm_control")).unwrap();
     let model = Model::baseline(&ds).unwrap();
-    let sims = simulate_arm(&ds, &model).unwrap();
+    let step = longreach_ident::analysis::choose_arm_step(&ds, &model).unwrap();
+    let sims = simulate_arm(&ds, &model, step.refinement).unwrap();
     let c = compare_arm(&ds, &sims).unwrap();
     // 5 motors, 5 joints, 10 tensions, the tip's 3 coordinates per run.
     assert_eq!(c.channels.len(), 4 * 23);
@@ -320,7 +321,7 @@ fn arm_compare_control_is_at_its_floors() {
 fn arm_compare_names_hidden_joint_friction() {
     let ds = Dataset::load(example("example_arm_joint_friction")).unwrap();
     let model = Model::baseline(&ds).unwrap();
-    let sims = simulate_arm(&ds, &model).unwrap();
+    let sims = simulate_arm(&ds, &model, 1).unwrap();
     let c = compare_arm(&ds, &sims).unwrap();
     assert!(c.worst_ratio > 10.0, "worst channel {:.2}x", c.worst_ratio);
     let above = c.channels.iter().filter(|e| e.ratio > 3.0).count();
@@ -335,14 +336,14 @@ fn arm_compare_names_hidden_joint_friction() {
 #[test]
 #[ignore = "9 min wall on the shared 2-core machine (456 s + 88 s, 130 s of CPU; 3120 + 440 run simulations): run with --ignored"]
 fn arm_diagnose_names_joint_friction_and_nothing_on_the_control() {
-    use longreach_ident::analysis::{diagnose, Prepared};
+    use longreach_ident::analysis::{diagnose, prepared_at_step};
     for (name, expect) in [
         ("example_arm_joint_friction", Some("joint_friction")),
         ("example_arm_control", None),
     ] {
         let ds = Dataset::load(example(name)).unwrap();
         let model = Model::baseline(&ds).unwrap();
-        let prep = Prepared::new(&ds).unwrap();
+        let (prep, _) = prepared_at_step(&ds, &model).unwrap();
         let t = std::time::Instant::now();
         let (d, _, _) = diagnose(&prep, &model).unwrap();
         eprintln!(
@@ -385,7 +386,7 @@ fn arm_diagnose_names_joint_friction_and_nothing_on_the_control() {
 #[test]
 fn arm_diagnose_names_link_flexibility_only_on_a_flexible_arm() {
     use longreach_drive::effects;
-    use longreach_ident::analysis::{diagnose, Prepared};
+    use longreach_ident::analysis::{diagnose, prepared_at_step};
     const EI_SCALE: f64 = 0.6;
     let dir = tempfile::tempdir().unwrap();
     let e = effects::find("link_flexibility").unwrap();
@@ -406,7 +407,7 @@ fn arm_diagnose_names_link_flexibility_only_on_a_flexible_arm() {
         .write(&path, "link_flexibility hidden")
         .unwrap();
     let ds = Dataset::load(&path).unwrap();
-    let prep = Prepared::new(&ds).unwrap();
+    let (prep, _) = prepared_at_step(&ds, &Model::baseline(&ds).unwrap()).unwrap();
     let t = std::time::Instant::now();
     let (d, base, _) = diagnose(&prep, &Model::baseline(&ds).unwrap()).unwrap();
     eprintln!(
@@ -453,7 +454,7 @@ fn arm_diagnose_names_link_flexibility_only_on_a_flexible_arm() {
         .write(&path, "rigid control")
         .unwrap();
     let ds = Dataset::load(&path).unwrap();
-    let prep = Prepared::new(&ds).unwrap();
+    let (prep, _) = prepared_at_step(&ds, &Model::baseline(&ds).unwrap()).unwrap();
     assert!(prep.plant.excludes(e).is_some());
     let (d, _, _) = diagnose(&prep, &Model::baseline(&ds).unwrap()).unwrap();
     assert!(
@@ -463,8 +464,129 @@ fn arm_diagnose_names_link_flexibility_only_on_a_flexible_arm() {
         d.candidates.iter().map(|c| &c.effect).collect::<Vec<_>>(),
         d.explanation
     );
-    let msg = simulate_arm(&ds, &Model::baseline(&ds).unwrap().with_effect(e))
+    let msg = simulate_arm(&ds, &Model::baseline(&ds).unwrap().with_effect(e), 1)
         .unwrap_err()
         .to_string();
     assert!(msg.contains("no E I to scale"), "{msg}");
+}
+
+/// `payload_mass` in the arm plant against the payload itself: the effect's +1 kg on a
+/// run carrying 2 kg simulates as the run carrying 3 kg (`payload_kg`), and its -1 kg
+/// on the 3 kg run as the 2 kg run (the point mass added and removed at the payload's
+/// point: the same arm to rounding); the extra kilogram sags the moved joint in the
+/// direction of gravity's torque.
+#[test]
+fn arm_payload_mass_effect_is_the_payload() {
+    use longreach_drive::effects;
+    let mut opt = ArmMovesOptions::new(root().join(SCENARIO), 5);
+    opt.duration_s = 0.6;
+    let mv = |kg: f64| ArmMove {
+        joint: "j2".into(),
+        move_rad: 0.05,
+        start_s: 0.1,
+        payload_kg: Some(kg),
+    };
+    opt.moves = vec![mv(2.0), mv(3.0)];
+    let plan = arm_plan(&opt).unwrap();
+    let e = effects::find("payload_mass").unwrap();
+    assert!(e.applies_to(effects::DataKind::ArmMoves));
+    let base = Model::baseline(&plan).unwrap();
+    let with = |kg: f64| {
+        let mut m = base.clone().with_effect(e);
+        m.effects[0].params[0].value = kg;
+        m
+    };
+    let plant = plant_for(&plan, 1);
+    let sim = |m: &Model, r: usize| plant.simulate(&m.plant_params(r).unwrap(), r).unwrap();
+    let close = |a: &longreach_ident::plant::Channels, b: &longreach_ident::plant::Channels| {
+        for (x, y) in a.0.iter().zip(&b.0).skip(1) {
+            let scale = y
+                .values
+                .iter()
+                .fold(0.0f64, |m, v| m.max(v.abs()))
+                .max(1e-3);
+            let d = x
+                .values
+                .iter()
+                .zip(&y.values)
+                .fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
+            assert!(d <= 1e-9 * scale, "{}: {d:e} (scale {scale})", x.name);
+        }
+    };
+    let (two, three) = (sim(&base, 0), sim(&base, 1));
+    close(&sim(&with(1.0), 0), &three);
+    close(&sim(&with(-1.0), 1), &two);
+    // The kilogram is felt: held at the start, some joint sags by more than an encoder
+    // count and some pair's tension changes by more than a newton.
+    let largest = |prefix: &str| {
+        two.0
+            .iter()
+            .zip(&three.0)
+            .filter(|(c, _)| c.name.starts_with(prefix))
+            .map(|(a, b)| (a.values[0] - b.values[0]).abs())
+            .fold(0.0f64, f64::max)
+    };
+    eprintln!(
+        "1 kg more: motors {:e} rad, joints {:e} rad, tensions {:e} N",
+        largest("motor_"),
+        largest("joint_"),
+        largest("tension_")
+    );
+    assert!(
+        largest("motor_").max(largest("joint_")) > 1e-4,
+        "{} {}",
+        largest("motor_"),
+        largest("joint_")
+    );
+    assert!(largest("tension_") > 1.0, "{}", largest("tension_"));
+    // Zero leaves the arm as it is, bit for bit.
+    assert_eq!(sim(&with(0.0), 0), two);
+    // A payload lighter than none is refused, with the effect named.
+    let msg = plant
+        .simulate(&with(-5.0).plant_params(0).unwrap(), 0)
+        .unwrap_err()
+        .to_string();
+    assert!(msg.contains("payload_mass"), "{msg}");
+}
+
+/// The arm's simulation step chosen from the data: on synthetic moves (the truth
+/// simulated at 1/8 ms) every halving of the step moves the channels less (the step
+/// error converges), the chosen step's halving stays within the tolerance, and the
+/// model compared at it sits at its floors while at 1 ms it may not.
+#[test]
+fn arm_step_is_chosen_from_the_data() {
+    use longreach_ident::analysis::{choose_arm_step, ARM_STEP_TOLERANCE_SIGMA};
+    let dir = tempfile::tempdir().unwrap();
+    let mut opt = ArmMovesOptions::new(root().join(SCENARIO), 9);
+    opt.duration_s = 1.5;
+    opt.moves = vec![ArmMove {
+        joint: "j2".into(),
+        move_rad: 0.1,
+        start_s: 0.2,
+        payload_kg: Some(4.0),
+    }];
+    let plan = arm_plan(&opt).unwrap();
+    let model = Model::baseline(&plan).unwrap();
+    let path = dir.path().join("ds");
+    arm_moves(&model, &plan, &opt)
+        .unwrap()
+        .write(&path, "step")
+        .unwrap();
+    let ds = Dataset::load(&path).unwrap();
+    let s = choose_arm_step(&ds, &model).unwrap();
+    eprintln!("{s:?}");
+    assert!(s.converged, "{s:?}");
+    let last = s.trials.last().unwrap();
+    assert!(last.change_sigma <= ARM_STEP_TOLERANCE_SIGMA, "{s:?}");
+    assert_eq!(last.refinement, s.refinement);
+    for w in s.trials.windows(2) {
+        assert!(w[1].change_sigma < 0.8 * w[0].change_sigma, "{s:?}");
+        assert!(w[1].refinement == 2 * w[0].refinement);
+    }
+    assert!(
+        s.step_s <= 1e-3 / s.refinement as f64 * (1.0 + 1e-12),
+        "{s:?}"
+    );
+    let c = compare_arm(&ds, &simulate_arm(&ds, &model, s.refinement).unwrap()).unwrap();
+    assert!(c.worst_ratio <= 1.3, "worst channel {:.3}x", c.worst_ratio);
 }

@@ -19,7 +19,7 @@
 use std::path::{Path, PathBuf};
 
 use longreach_drive::effects::{DataKind, Effect, REGISTRY};
-use longreach_ident::analysis::{diagnose, Prepared};
+use longreach_ident::analysis::{diagnose, prepared_at_step};
 use longreach_ident::model::Model;
 use longreach_ident::synth::{arm_moves, arm_plan, ArmMove, ArmMovesOptions};
 use longreach_ident::Dataset;
@@ -53,6 +53,7 @@ fn settings(e: &dyn Effect) -> [Vec<f64>; 2] {
         "extra_retardation" => [vec![5e5, 2e5], vec![3e5, 3e4]],
         "nonlinear_creep" => [vec![400.0, 2.0], vec![800.0, 3.0]],
         "plastic_ratchet" => [vec![1e5], vec![3e5]],
+        "payload_mass" => [vec![1.5], vec![4.0]],
         _ => {
             let d: Vec<f64> = e.params().iter().map(|p| p.default).collect();
             [d.clone(), d]
@@ -96,7 +97,7 @@ fn run_case(
         .write(&path, label)
         .unwrap();
     let ds = Dataset::load(&path).unwrap();
-    let prep = Prepared::new(&ds).unwrap();
+    let (prep, _) = prepared_at_step(&ds, &Model::baseline(&ds).unwrap()).unwrap();
     let t = std::time::Instant::now();
     let (d, base, _) = diagnose(&prep, &Model::baseline(&ds).unwrap()).unwrap();
     let first = d.candidates.first().map(|c| c.effect.clone());
