@@ -513,13 +513,51 @@ pub fn diagnose(
             }
         }
     }
+    // One effect never becomes two: each member of the best pair refitted alone from
+    // the pair's values. A single fit can stop short of its own optimum (its starts far
+    // from it, its budget spent in a valley) where the pair's second effect only makes
+    // up for that: the member alone from the pair's values then does as well as the
+    // pair, and the pair is not decisive against it.
+    if let Some((_, Some(pf))) = pairs.first() {
+        let n_eff = pf.model.effects.len();
+        let refits: Vec<Fitted> = (n_eff.saturating_sub(2)..n_eff)
+            .into_par_iter()
+            .filter_map(|drop| {
+                let mut m = pf.model.clone();
+                m.effects.remove(drop);
+                fit_model_from(prep, &m, Start::Own).ok()
+            })
+            .collect();
+        for f in refits {
+            let Some(name) = f.model.effects.last().map(|e| e.effect.name().to_string()) else {
+                continue;
+            };
+            if let Some(slot) = cands.iter_mut().find(|(c, _)| c.effect == name) {
+                if slot.1.as_ref().is_none_or(|g| f.ssr < g.ssr) {
+                    notes.push(format!(
+                        "{name} refitted alone from the best pair's values leaves NRMSE {:.4} ({:.2}x the floor; its own fit had stopped at {}). ",
+                        f.nrmse,
+                        f.nrmse / f.noise_floor.max(f64::MIN_POSITIVE),
+                        slot.1
+                            .as_ref()
+                            .map_or("-".into(), |g| format!("{:.4}", g.nrmse))
+                    ));
+                    *slot = (judge.candidate(name, &f), Some(f));
+                }
+            }
+        }
+        rank(&mut cands);
+    }
     let single_decisive = !at_floor && decisive_first(&cands, base.ssr, ssr_floor, n);
     // A pair is decisive when it is decisive against the best single candidate (as a
     // candidate is against the baseline: explains most of what the single leaves,
     // scores very strongly above it) and leads the next pair by the score gap.
     let pair_decisive = !at_floor
         && match (cands.first(), pairs.first()) {
-            (Some((_, Some(single))), Some((_, Some(pair)))) => {
+            // (a single that reaches the floor leaves nothing for a second effect)
+            (Some((_, Some(single))), Some((_, Some(pair))))
+                if single.nrmse > FLOOR_MARGIN * single.noise_floor =>
+            {
                 let vs_single = Judge {
                     base_ssr: single.ssr,
                     excess: (single.ssr - ssr_floor).max(0.0),
