@@ -513,7 +513,7 @@ pub fn arm_plan(opt: &ArmMovesOptions) -> Result<crate::Dataset, IdentError> {
 }
 
 /// Simulates `model` on the moves of `plan` (from [`arm_plan`]), at steps of 1/8 ms
-/// ([`crate::plant::ARM_MAX_REFINEMENT`]), and reports what the sensors of `opt` would: encoders quantise the motor and joint angles, tensions and
+/// ([`crate::plant::SYNTH_ARM_REFINEMENT`]), and reports what the sensors of `opt` would: encoders quantise the motor and joint angles, tensions and
 /// the tip get Gaussian noise (seeded, one stream per run and channel). Write the
 /// result with [`crate::dataset::ArmMovesDataset::write`].
 pub fn arm_moves(
@@ -533,7 +533,7 @@ pub fn arm_moves(
     let enc_decimals = (-opt.encoder_resolution_rad.log10()).ceil() as i32;
     // The truth at the finest step `compare` tries: the data carry (almost) no step
     // error of their own, as a measurement carries none.
-    let plant = ArmPlant::with_refinement(am, crate::plant::ARM_MAX_REFINEMENT);
+    let plant = ArmPlant::with_refinement(am, crate::plant::SYNTH_ARM_REFINEMENT);
     let mut out = am.clone();
     for (r, run) in out.runs.iter_mut().enumerate() {
         let sim = plant.simulate(&model.plant_params(r)?, r)?;

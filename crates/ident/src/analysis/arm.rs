@@ -494,8 +494,9 @@ pub fn arm_dataset(ds: &Dataset) -> Option<&ArmMovesDataset> {
 }
 
 /// The step error `compare` and `diagnose` accept on an arm, in noise standard
-/// deviations: the RMS over every sample of every measured channel (each over its
-/// noise, [`crate::plant::ARM_STACKED`]) of the change when the step is halved. The
+/// deviations: the largest over the measured channels of every run of the RMS change
+/// of the channel (over its noise, [`crate::plant::ARM_STACKED`]) when the step is
+/// halved. The
 /// arm's step error falls as the step (first order), so the error left is about twice
 /// that change: at most 0.5 sigma, 12% on the noise floor in quadrature.
 pub const ARM_STEP_TOLERANCE_SIGMA: f64 = 0.25;
@@ -509,7 +510,8 @@ pub struct StepTrial {
     pub refinement: usize,
     /// The longest step of any run at this refinement, s.
     pub step_s: f64,
-    /// RMS change of every channel (over its noise) from this step to half of it.
+    /// Largest RMS change of any channel of any run (over its noise) from this step to
+    /// half of it.
     pub change_sigma: f64,
     /// The model's NRMSE against the data at this step (every channel over its noise,
     /// [`crate::plant::ARM_STACKED`]).
@@ -519,14 +521,15 @@ pub struct StepTrial {
 /// The simulation step chosen from the data ([`choose_arm_step`]).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ArmStep {
-    /// The refinement chosen: the coarsest whose halving changes the channels by at
-    /// most [`ARM_STEP_TOLERANCE_SIGMA`], or [`ARM_MAX_REFINEMENT`].
+    /// The refinement chosen: the coarsest whose halving changes every channel by at
+    /// most [`ARM_STEP_TOLERANCE_SIGMA`], or [`ARM_MAX_REFINEMENT`] (its halving
+    /// measured too).
     pub refinement: usize,
     /// The longest step of any run at that refinement, s.
     pub step_s: f64,
-    /// Whether the halving at the chosen step stayed within the tolerance (false: the
-    /// finest step tried still moved the channels by more; its change is the last
-    /// trial's).
+    /// Whether the halving at the chosen step stayed within the tolerance (false: at
+    /// the finest step its halving still moved a channel by more; its change is the
+    /// last trial's).
     pub converged: bool,
     /// Every halving tried, coarsest first.
     pub trials: Vec<StepTrial>,
@@ -581,27 +584,27 @@ pub fn choose_arm_step(ds: &Dataset, model: &Model) -> Result<ArmStep, IdentErro
     let mut coarse = simulate_arm(ds, model, k)?;
     loop {
         let fine = simulate_arm(ds, model, 2 * k)?;
-        let (mut ss, mut n) = (0.0, 0usize);
-        for (a, b) in coarse.iter().zip(&fine) {
-            for (x, y) in a.primary().iter().zip(b.primary()) {
-                ss += (x - y).powi(2);
-                n += 1;
+        // each channel of each run on its own (a channel that moves must not hide
+        // among the many that barely do)
+        let mut change_sigma = 0.0f64;
+        for ((a, b), r) in coarse.iter().zip(&fine).zip(&am.runs) {
+            let n = r.time_s.len().max(1);
+            for (x, y) in a.primary().chunks(n).zip(b.primary().chunks(n)) {
+                let ss: f64 = x.iter().zip(y).map(|(p, q)| (p - q).powi(2)).sum();
+                change_sigma = change_sigma.max((ss / n as f64).sqrt());
             }
         }
-        let change_sigma = (ss / n.max(1) as f64).sqrt();
         trials.push(StepTrial {
             refinement: k,
             step_s: step_of(k),
             change_sigma,
             nrmse: nrmse(&coarse),
         });
-        if change_sigma <= ARM_STEP_TOLERANCE_SIGMA || 2 * k >= ARM_MAX_REFINEMENT {
-            let converged = change_sigma <= ARM_STEP_TOLERANCE_SIGMA;
-            let refinement = if converged { k } else { 2 * k };
+        if change_sigma <= ARM_STEP_TOLERANCE_SIGMA || k >= ARM_MAX_REFINEMENT {
             return Ok(ArmStep {
-                refinement,
-                step_s: step_of(refinement),
-                converged,
+                refinement: k,
+                step_s: step_of(k),
+                converged: change_sigma <= ARM_STEP_TOLERANCE_SIGMA,
                 trials,
             });
         }

@@ -518,7 +518,11 @@ pub fn diagnose(
     // from it, its budget spent in a valley) where the pair's second effect only makes
     // up for that: the member alone from the pair's values then does as well as the
     // pair, and the pair is not decisive against it.
-    if let Some((_, Some(pf))) = pairs.first() {
+    // (only for a pair that could be named: one left above the margin is no verdict)
+    if let Some((_, Some(pf))) = pairs
+        .first()
+        .filter(|(_, f)| f.as_ref().is_some_and(nameable))
+    {
         let n_eff = pf.model.effects.len();
         let refits: Vec<Fitted> = (n_eff.saturating_sub(2)..n_eff)
             .into_par_iter()

@@ -31,7 +31,7 @@ mod arm;
 
 pub use arm::{
     stack, stacking, substeps_for, ArmPlant, ArmPoses, ARM_MAX_REFINEMENT, ARM_MAX_STEP_S,
-    ARM_STACKED,
+    ARM_STACKED, SYNTH_ARM_REFINEMENT,
 };
 
 /// One simulated channel of a run, named as the dataset's column.
