@@ -106,7 +106,8 @@ fn figures_table(c: &ArmComparison) -> Table {
 /// The simulation step of an arm dataset, chosen from the data with `model`
 /// ([`analysis::choose_arm_step`]), printed with every halving tried.
 pub fn choose_step(ds: &Dataset, model: &Model) -> Result<analysis::ArmStep> {
-    let s = analysis::choose_arm_step(ds, model).map_err(|e| anyhow!("{e}"))?;
+    let prep = analysis::Prepared::new(ds).map_err(|e| anyhow!("{e}"))?;
+    let s = analysis::choose_arm_step(&prep, model).map_err(|e| anyhow!("{e}"))?;
     println!("{}", step_words(&s));
     Ok(s)
 }

@@ -331,7 +331,53 @@ impl ArmSpec {
                 format!("payload mass {mass_kg} kg at {offset_m:?} m: need a finite mass >= 0 and a finite offset"),
             ));
         }
-        let Some(f) = self.frame(frame).cloned() else {
+        let (link, point) = self.point_on(frame, mass_kg, offset_m)?;
+        let link = &mut self.links[link];
+        link.inertial = link.inertial.combined(&point);
+        Ok(())
+    }
+
+    /// Adds a point mass of `mass_kg` at `offset_m` (in frame `frame`'s coordinates) to
+    /// the moving link that carries the frame, or removes one where `mass_kg` < 0 (the
+    /// exact inverse of [`Self::add_payload`]): the correction of a payload known wrong.
+    /// The link must keep a mass > 0 and a positive-definite inertia.
+    pub fn add_point_mass(
+        &mut self,
+        frame: &str,
+        mass_kg: f64,
+        offset_m: [f64; 3],
+    ) -> Result<(), SpecError> {
+        let offset = Vector3::from(offset_m);
+        if mass_kg >= 0.0 || !mass_kg.is_finite() || offset.iter().any(|v| !v.is_finite()) {
+            return self.add_payload(frame, mass_kg, offset);
+        }
+        let (link, point) = self.point_on(frame, mass_kg, offset)?;
+        let combined = self.links[link].inertial.combined(&point);
+        let moments = combined.principal_moments_kg_m2();
+        if !(combined.mass_kg > 0.0 && moments[0] > 0.0) {
+            return Err(self.err(
+                Element::Link(frame.to_string()),
+                format!(
+                    "removing {:.6} kg there leaves the link {} kg and principal moments {moments:?} kg*m^2: \
+                     a payload lighter than the link can carry",
+                    -mass_kg, combined.mass_kg
+                ),
+            ));
+        }
+        self.links[link].inertial = combined;
+        Ok(())
+    }
+
+    /// The moving link that carries frame `frame` and a point mass of `mass_kg` at
+    /// `offset_m` in that frame, in the link's coordinates; refused for a frame the
+    /// URDF does not have or one fixed to the base.
+    fn point_on(
+        &self,
+        frame: &str,
+        mass_kg: f64,
+        offset_m: Vector3<f64>,
+    ) -> Result<(usize, Inertial), SpecError> {
+        let Some(f) = self.frame(frame) else {
             return Err(self.err(
                 Element::Arm,
                 format!(
@@ -356,50 +402,7 @@ impl ArmSpec {
             com_m: f.link_from_frame.transform_point(&offset_m.into()).coords,
             inertia_kg_m2: Matrix3::zeros(),
         };
-        let link = &mut self.links[f.link];
-        link.inertial = link.inertial.combined(&point);
-        Ok(())
-    }
-
-    /// Adds a point mass of `mass_kg` at `offset_m` (in frame `frame`'s coordinates) to
-    /// the moving link that carries the frame, or removes one where `mass_kg` < 0 (the
-    /// exact inverse of [`Self::add_payload`]): the correction of a payload known wrong.
-    /// The link must keep a mass > 0 and a positive-definite inertia.
-    pub fn add_point_mass(
-        &mut self,
-        frame: &str,
-        mass_kg: f64,
-        offset_m: [f64; 3],
-    ) -> Result<(), SpecError> {
-        if mass_kg >= 0.0 {
-            return self.add_payload(frame, mass_kg, Vector3::from(offset_m));
-        }
-        let offset = Vector3::from(offset_m);
-        let Some(f) = self.frame(frame).cloned().filter(|f| f.link != 0) else {
-            return self.add_payload(frame, 0.0, offset);
-        };
-        if !mass_kg.is_finite() || offset.iter().any(|v| !v.is_finite()) {
-            return self.add_payload(frame, mass_kg, offset);
-        }
-        let point = Inertial {
-            mass_kg,
-            com_m: f.link_from_frame.transform_point(&offset.into()).coords,
-            inertia_kg_m2: Matrix3::zeros(),
-        };
-        let combined = self.links[f.link].inertial.combined(&point);
-        let moments = combined.principal_moments_kg_m2();
-        if !(combined.mass_kg > 0.0 && moments[0] > 0.0) {
-            return Err(self.err(
-                Element::Link(frame.to_string()),
-                format!(
-                    "removing {:.6} kg there leaves the link {} kg and principal moments {moments:?} kg*m^2: \
-                     a payload lighter than the link can carry",
-                    -mass_kg, combined.mass_kg
-                ),
-            ));
-        }
-        self.links[f.link].inertial = combined;
-        Ok(())
+        Ok((f.link, point))
     }
 
     fn err(&self, element: Element, reason: String) -> SpecError {

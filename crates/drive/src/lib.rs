@@ -16,5 +16,5 @@ pub use error::DriveError;
 pub use rig::{RigModel, RigSpec, RigState, MAX_RELAY_PULLEYS};
 pub use signal::{InputSignal, SineStep, SteppedSine};
 pub use sweep::{FrequencyPoint, RigTrace};
-pub use tf::{rig_resonance, rig_transfer, Resonance};
+pub use tf::{golden_section_max, rig_resonance, rig_transfer, Resonance};
 pub use transmission::{RelayFriction, RelayState, RelayTorque, Tensioner};

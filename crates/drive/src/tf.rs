@@ -61,6 +61,31 @@ pub struct Resonance {
     pub peak_gain_db: f64,
 }
 
+/// The maximum of a unimodal `f` on `[a, b]` by golden-section search: at most
+/// `max_iter` reductions of the bracket, stopping once it is narrower than `rel_tol`
+/// times its upper end; the bracket's midpoint.
+pub fn golden_section_max(
+    f: impl Fn(f64) -> f64,
+    mut a: f64,
+    mut b: f64,
+    max_iter: usize,
+    rel_tol: f64,
+) -> f64 {
+    let r = (5f64.sqrt() - 1.0) / 2.0;
+    for _ in 0..max_iter {
+        let (c, d) = (b - r * (b - a), a + r * (b - a));
+        if f(c) > f(d) {
+            b = d;
+        } else {
+            a = c;
+        }
+        if b - a < rel_tol * b {
+            break;
+        }
+    }
+    0.5 * (a + b)
+}
+
 /// Resonance of the analytic rig response: the global maximum of `|G|` between
 /// `lo_hz` and `hi_hz`, found on a log grid and refined by golden-section search.
 /// `None` when the maximum sits at an end of the range (no resonance inside).
@@ -75,20 +100,7 @@ pub fn rig_resonance(spec: &RigSpec, lo_hz: f64, hi_hz: f64) -> Option<Resonance
     if best == 0 || best == n {
         return None;
     }
-    let (mut a, mut b) = (freq(best - 1), freq(best + 1));
-    let r = (5f64.sqrt() - 1.0) / 2.0;
-    for _ in 0..100 {
-        let (c, d) = (b - r * (b - a), a + r * (b - a));
-        if gain(c) > gain(d) {
-            b = d;
-        } else {
-            a = c;
-        }
-        if b - a < 1e-12 * b {
-            break;
-        }
-    }
-    let f = 0.5 * (a + b);
+    let f = golden_section_max(gain, freq(best - 1), freq(best + 1), 100, 1e-12);
     Some(Resonance {
         frequency_hz: f,
         peak_gain_db: 20.0 * gain(f).log10(),

@@ -535,49 +535,25 @@ pub struct ArmStep {
     pub trials: Vec<StepTrial>,
 }
 
-/// Chooses the arm's simulation step from the data: `model` is simulated at steps of
+/// Chooses the arm's simulation step from the prepared data: `model` is simulated at steps of
 /// at most [`crate::plant::ARM_MAX_STEP_S`] (1 ms), then at half of that, and so on;
 /// the first step whose halving changes the channels by at most
 /// [`ARM_STEP_TOLERANCE_SIGMA`] noise standard deviations is kept (so that the
 /// simulation's own error stays below the sensors' noise), [`ARM_MAX_REFINEMENT`] at
 /// most. Each trial records the model's NRMSE at its step: it stops moving where the
 /// change does.
-pub fn choose_arm_step(ds: &Dataset, model: &Model) -> Result<ArmStep, IdentError> {
+pub fn choose_arm_step(prep: &super::Prepared<'_>, model: &Model) -> Result<ArmStep, IdentError> {
+    let ds = prep.ds;
     let DatasetKind::ArmMoves(am) = &ds.kind else {
         return Err(IdentError::NotAnArm {
             kind: ds.kind.name(),
         });
     };
-    let step_of = |k: usize| {
-        am.runs
-            .iter()
-            .map(|r| {
-                let dt = r.dt_s();
-                dt / (crate::plant::substeps_for(dt) * k) as f64
-            })
-            .fold(0.0, f64::max)
-    };
-    let measured: Vec<Vec<f64>> = am
-        .runs
-        .iter()
-        .map(|r| {
-            let w = crate::plant::stacking(r);
-            crate::plant::stack(&w, |k| r.channels[k].values.as_slice())
-        })
-        .collect();
+    let step_of = |k: usize| crate::plant::longest_step_s(am, k);
+    // the prepared data's NRMSE (every channel over its noise, stacked)
     let nrmse = |sims: &[Channels]| -> f64 {
-        let (mut sse, mut sst) = (0.0, 0.0);
-        for (s, m) in sims.iter().zip(&measured) {
-            let y = s.primary();
-            let mean = m.iter().sum::<f64>() / m.len().max(1) as f64;
-            sse += y.iter().zip(m).map(|(a, b)| (a - b).powi(2)).sum::<f64>();
-            sst += m.iter().map(|b| (b - mean).powi(2)).sum::<f64>();
-        }
-        if sst > 0.0 {
-            (sse / sst).sqrt()
-        } else {
-            f64::NAN
-        }
+        let stacked: Vec<Vec<f64>> = sims.iter().map(|s| s.primary().to_vec()).collect();
+        prep.overall(&stacked).0
     };
     let mut trials = Vec::new();
     let mut k = 1;
@@ -624,6 +600,6 @@ pub fn prepared_at_step<'a>(
     if !matches!(ds.kind, DatasetKind::ArmMoves(_)) {
         return Ok((prep, None));
     }
-    let step = choose_arm_step(ds, model)?;
+    let step = choose_arm_step(&prep, model)?;
     Ok((prep.with_arm_refinement(step.refinement), Some(step)))
 }

@@ -603,34 +603,36 @@ pub fn diagnose(
             why,
         }
     };
-    if pair_decisive {
-        if let Some((c, Some(f))) = pairs.first_mut() {
-            let effs: Vec<String> = f
+    // The decisive pair, else the decisive single, with the effects it adds: named
+    // when its model reaches the name margin, else the lead.
+    let decided = if pair_decisive {
+        pairs.first_mut().and_then(|(c, f)| {
+            let f = f.as_ref()?;
+            let effs = f
                 .model
                 .effects
                 .iter()
                 .skip(base.model.effects.len())
                 .map(|u| u.effect.name().to_string())
                 .collect();
-            if nameable(f) {
-                c.decisive = true;
-                named = effs;
-                winner = Some(f.clone());
-            } else {
-                lead = Some(note_lead(c, f, effs));
-                lead_fit = Some(f.clone());
-            }
-        }
+            Some((c, f, effs))
+        })
     } else if single_decisive {
-        if let Some((c, Some(f))) = cands.first_mut() {
-            if nameable(f) {
-                c.decisive = true;
-                named = vec![c.effect.clone()];
-                winner = Some(f.clone());
-            } else {
-                lead = Some(note_lead(c, f, vec![c.effect.clone()]));
-                lead_fit = Some(f.clone());
-            }
+        cands.first_mut().and_then(|(c, f)| {
+            let effs = vec![c.effect.clone()];
+            Some((c, f.as_ref()?, effs))
+        })
+    } else {
+        None
+    };
+    if let Some((c, f, effs)) = decided {
+        if nameable(f) {
+            c.decisive = true;
+            named = effs;
+            winner = Some(f.clone());
+        } else {
+            lead = Some(note_lead(c, f, effs));
+            lead_fit = Some(f.clone());
         }
     }
     let missing = named.first().cloned();
@@ -700,15 +702,9 @@ pub fn diagnose(
         signatures: sigs,
         refinements,
         simulation_step_s: match &prep.ds.kind {
-            crate::DatasetKind::ArmMoves(am) => Some(
-                am.runs
-                    .iter()
-                    .map(|r| {
-                        let dt = r.dt_s();
-                        dt / (crate::plant::substeps_for(dt) * prep.arm_refinement) as f64
-                    })
-                    .fold(0.0, f64::max),
-            ),
+            crate::DatasetKind::ArmMoves(am) => {
+                Some(crate::plant::longest_step_s(am, prep.arm_refinement))
+            }
             _ => None,
         },
     };

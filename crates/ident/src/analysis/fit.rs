@@ -205,6 +205,17 @@ fn grid_axis(s: &ParamSpec, npts: usize) -> Vec<f64> {
     v
 }
 
+/// Whether a free parameter is an effect's.
+fn is_effect(slot: &crate::model::Slot) -> bool {
+    matches!(slot.owner, crate::model::Owner::Effect(_))
+}
+
+/// Whether a free parameter is the base's `k1_scale`.
+fn is_k1_scale(model: &Model, slot: &crate::model::Slot) -> bool {
+    slot.owner == crate::model::Owner::Base
+        && model.base[slot.index].role == crate::model::Role::Base(crate::model::BaseParam::K1Scale)
+}
+
 /// The model's values improved one coordinate at a time on the simulation: every
 /// effect parameter and `k1_scale` scanned in turn along its starting grid's axis
 /// ([`grid_axis`], 9 points) from the current point, the best point kept each time
@@ -218,32 +229,38 @@ pub fn scan_coordinates(prep: &Prepared<'_>, model: &Model) -> Result<Model, Ide
     let mut x: Vec<f64> = specs.iter().map(|s| s.initial).collect();
     let mut best = cache.ssr(&x);
     for i in 0..specs.len() {
-        let scanned = matches!(slots[i].owner, crate::model::Owner::Effect(_))
-            || (slots[i].owner == crate::model::Owner::Base
-                && model.base[slots[i].index].role
-                    == crate::model::Role::Base(crate::model::BaseParam::K1Scale));
-        if !scanned {
+        if !(is_effect(&slots[i]) || is_k1_scale(model, &slots[i])) {
             continue;
         }
-        let line: Vec<Vec<f64>> = grid_axis(&specs[i], 9)
-            .into_iter()
-            .map(|v| {
-                let mut y = x.clone();
-                y[i] = v;
-                y
-            })
-            .collect();
-        let costs: Vec<f64> = line.par_iter().map(|y| cache.ssr(y)).collect();
-        if let Some(k) =
-            (0..line.len()).min_by(|&a, &b| costs[a].total_cmp(&costs[b]).then(a.cmp(&b)))
-        {
-            if costs[k] < best {
-                best = costs[k];
-                x = line[k].clone();
+        if let Some((cost, y)) = best_on_axis(&cache, &x, i, &grid_axis(&specs[i], 9)) {
+            if cost < best {
+                best = cost;
+                x = y;
             }
         }
     }
     Ok(model.with_values(&x, n_runs))
+}
+
+/// `x` with coordinate `i` set to the value of `axis` that simulates closest to the
+/// data (parallel simulations; ties: the first), and that cost.
+fn best_on_axis(
+    cache: &SimCache<'_, '_>,
+    x: &[f64],
+    i: usize,
+    axis: &[f64],
+) -> Option<(f64, Vec<f64>)> {
+    let mut line: Vec<Vec<f64>> = axis
+        .iter()
+        .map(|&v| {
+            let mut y = x.to_vec();
+            y[i] = v;
+            y
+        })
+        .collect();
+    let costs: Vec<f64> = line.par_iter().map(|y| cache.ssr(y)).collect();
+    let k = (0..line.len()).min_by(|&a, &b| costs[a].total_cmp(&costs[b]).then(a.cmp(&b)))?;
+    Some((costs[k], line.swap_remove(k)))
 }
 
 /// Distinct minima of a sweep's starting grid refined on the analytic response and
@@ -273,11 +290,8 @@ fn starting_values(
     let slots = model.free_slots(prep.runs.len());
     let gridded: Vec<usize> = (0..specs.len())
         .filter(|&i| {
-            matches!(slots[i].owner, crate::model::Owner::Effect(_))
-                || (prep.kind == DataKind::SineSweep
-                    && slots[i].owner == crate::model::Owner::Base
-                    && model.base[slots[i].index].role
-                        == crate::model::Role::Base(crate::model::BaseParam::K1Scale))
+            is_effect(&slots[i])
+                || (prep.kind == DataKind::SineSweep && is_k1_scale(model, &slots[i]))
         })
         .take(3)
         .collect();
@@ -406,27 +420,15 @@ fn starting_values(
             })
             .collect();
         if scan_hidden && !hidden.is_empty() {
-            let sim_cost = |x: &Vec<f64>| -> f64 { cache.ssr(x) };
             for &g in &hidden {
                 x0[gridded[g]] = specs[gridded[g]].initial;
             }
             let mut best_cost = f64::INFINITY;
             for &g in &hidden {
-                let line: Vec<Vec<f64>> = axes[g]
-                    .iter()
-                    .map(|&v| {
-                        let mut x = x0.clone();
-                        x[gridded[g]] = v;
-                        x
-                    })
-                    .collect();
-                let line_costs: Vec<f64> = line.par_iter().map(sim_cost).collect();
-                if let Some(k) = (0..line.len())
-                    .min_by(|&a, &b| line_costs[a].total_cmp(&line_costs[b]).then(a.cmp(&b)))
-                {
-                    if line_costs[k] < best_cost {
-                        best_cost = line_costs[k];
-                        x0 = line[k].clone();
+                if let Some((cost, x)) = best_on_axis(cache, &x0, gridded[g], &axes[g]) {
+                    if cost < best_cost {
+                        best_cost = cost;
+                        x0 = x;
                     }
                 }
             }

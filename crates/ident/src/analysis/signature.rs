@@ -1004,17 +1004,13 @@ fn periodic(b: &Base<'_, '_>) -> Option<(Term, f64)> {
     let powers: Vec<f64> = grid.par_iter().map(|&f| power(f)).collect();
     let k = (0..grid.len()).max_by(|&a, &c| powers[a].total_cmp(&powers[c]))?;
     // golden-section refinement between the neighbouring grid points
-    let (mut a, mut c) = (grid[k.saturating_sub(1)], grid[(k + 1).min(grid.len() - 1)]);
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    for _ in 0..30 {
-        let (x1, x2) = (c - g * (c - a), a + g * (c - a));
-        if power(x1) > power(x2) {
-            c = x2;
-        } else {
-            a = x1;
-        }
-    }
-    let f = 0.5 * (a + c);
+    let f = longreach_drive::golden_section_max(
+        power,
+        grid[k.saturating_sub(1)],
+        grid[(k + 1).min(grid.len() - 1)],
+        30,
+        0.0,
+    );
     let w = TAU * f;
     // each run: offset, cos and sin by least squares (3x3 normal equations)
     let mut ssr_after = 0.0;

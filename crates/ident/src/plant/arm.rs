@@ -94,6 +94,18 @@ pub fn substeps_for(dt_s: f64) -> usize {
     ((dt_s / ARM_MAX_STEP_S) - 1e-9).ceil().max(1.0) as usize
 }
 
+/// The longest simulation step of any run of `ds`, s, with every step of at most
+/// [`ARM_MAX_STEP_S`] divided into `refinement` ([`ArmPlant::with_refinement`]).
+pub fn longest_step_s(ds: &ArmMovesDataset, refinement: usize) -> f64 {
+    ds.runs
+        .iter()
+        .map(|r| {
+            let dt = r.dt_s();
+            dt / (substeps_for(dt) * refinement) as f64
+        })
+        .fold(0.0, f64::max)
+}
+
 /// What the scenario compiles to, before the model's numbers.
 #[derive(Debug, Clone)]
 struct ArmParts {

@@ -279,7 +279,8 @@ fn arm_synth_is_seeded() {
 fn arm_compare_control_is_at_its_floors() {
     let ds = Dataset::load(example("example_arm_control")).unwrap();
     let model = Model::baseline(&ds).unwrap();
-    let step = longreach_ident::analysis::choose_arm_step(&ds, &model).unwrap();
+    let prep = longreach_ident::analysis::Prepared::new(&ds).unwrap();
+    let step = longreach_ident::analysis::choose_arm_step(&prep, &model).unwrap();
     let sims = simulate_arm(&ds, &model, step.refinement).unwrap();
     let c = compare_arm(&ds, &sims).unwrap();
     // 5 motors, 5 joints, 10 tensions, the tip's 3 coordinates per run.
@@ -575,7 +576,8 @@ fn arm_step_is_chosen_from_the_data() {
         .write(&path, "step")
         .unwrap();
     let ds = Dataset::load(&path).unwrap();
-    let s = choose_arm_step(&ds, &model).unwrap();
+    let prep = longreach_ident::analysis::Prepared::new(&ds).unwrap();
+    let s = choose_arm_step(&prep, &model).unwrap();
     eprintln!("{s:?}");
     let last = s.trials.last().unwrap();
     // converged within the tolerance at the step kept, or the finest step kept and
