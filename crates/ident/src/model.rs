@@ -517,6 +517,36 @@ impl Model {
             .collect()
     }
 
+    /// The model with every fitted effect parameter that sits on one of its bounds
+    /// (within the margin [`crate::fitting::strictly_inside`] keeps a start from them)
+    /// back at the effect's default; `None` when none does. A least-squares fit started
+    /// on a bound stays there (the map of a bounded parameter is flat at its bounds):
+    /// where a value was pinned by something other than the data at hand (a search at a
+    /// coarser step), the fit restarts it from the default instead.
+    pub fn with_bound_values_reset(&self, n_runs: usize) -> Option<Model> {
+        let mut m = self.clone();
+        let mut any = false;
+        for s in self.free_slots(n_runs) {
+            let Owner::Effect(e) = s.owner else { continue };
+            let Some(def) = self.effects[e].effect.params().get(s.index) else {
+                continue;
+            };
+            let p = self.param(&s);
+            let v = s.run.map_or(p.value, |r| p.value_for(r));
+            // (bit for bit: a value the margin moves at all is on a bound)
+            if crate::fitting::strictly_inside(v, p.lower, p.upper).to_bits() == v.to_bits() {
+                continue;
+            }
+            any = true;
+            let q = m.param_mut(&s);
+            match (s.run, q.run_values.as_mut()) {
+                (Some(r), Some(vals)) if r < vals.len() => vals[r] = def.default,
+                _ => q.value = def.default,
+            }
+        }
+        any.then_some(m)
+    }
+
     /// The model with the free parameters set to `x` (in [`Self::free_slots`] order).
     pub fn with_values(&self, x: &[f64], n_runs: usize) -> Model {
         let mut m = self.clone();

@@ -153,6 +153,107 @@ pub const NAME_MARGIN: f64 = 2.0;
 /// each with each: 3 gives 3 pairs.
 pub const PAIR_CANDIDATES: usize = 3;
 
+/// Candidates (and pairs) fitted on an arm's coarse twin ([`Prepared::coarse_twin`])
+/// whose fits are finished at the chosen step: the best this many by their SSR there.
+/// The decision compares the first with the second, both finished; the third guards
+/// against an order the coarse step's own error swapped.
+pub const FINALISTS: usize = 3;
+
+/// Fits made on `search` (an arm's coarse twin; the same data at 1 ms), finished on
+/// `prep` (the step chosen from the data): every fit scored at `prep`'s step at its
+/// values (one simulation), and the `finalists` best by that score fitted on from
+/// their values there ([`Start::Own`]). Without a coarse twin, the fits as they are.
+///
+/// A diagnosis' cost is its searches: the starting grids and the least squares from
+/// every start of every candidate. On `example_arm_joint_friction` (0.25 ms chosen)
+/// they took 96 of its 120 s; at 1 ms they cost a quarter. The step's own error moves
+/// a fit's values by a fraction of their scatter, which the finish at the chosen step
+/// takes back; every number a diagnosis reports and decides on (NRMSE, SSR, score) is
+/// the chosen step's.
+fn finish(
+    prep: &Prepared<'_>,
+    search: &Prepared<'_>,
+    fits: Vec<(String, Result<Fitted, IdentError>)>,
+    finalists: usize,
+) -> Vec<(String, Result<Fitted, IdentError>)> {
+    if std::ptr::eq(prep, search) {
+        return fits;
+    }
+    let mut scored: Vec<(String, Result<Fitted, IdentError>)> = fits
+        .into_par_iter()
+        .map(|(name, r)| (name, r.and_then(|f| rescored(prep, f))))
+        .collect();
+    let mut order: Vec<usize> = (0..scored.len())
+        .filter(|&i| scored[i].1.as_ref().is_ok_and(|f| f.fit.is_some()))
+        .collect();
+    order.sort_by(|&i, &j| {
+        let ssr = |k: usize| scored[k].1.as_ref().map_or(f64::INFINITY, |f| f.ssr);
+        ssr(i).total_cmp(&ssr(j)).then(i.cmp(&j))
+    });
+    order.truncate(finalists);
+    let firsts: Vec<&Fitted> = order
+        .iter()
+        .filter_map(|&i| scored[i].1.as_ref().ok())
+        .collect();
+    let better = finished(prep, &firsts);
+    for (&i, g) in order.iter().zip(better) {
+        if let Some(g) = g {
+            scored[i].1 = Ok(g);
+        }
+    }
+    scored
+}
+
+/// Each of `fits` (fitted on an arm's coarse twin, scored at `prep`'s step) fitted on at
+/// `prep`'s step from its values, and, when some of them sat on a bound (pinned by the
+/// coarse step's own error: a flexible link's damping ratio at its upper bound, say)
+/// and the model is closer to the data with those at their defaults (one simulation),
+/// also from there: a fit does not leave a bound it starts on. For each, the better
+/// fit found when it improves on the one given.
+fn finished(prep: &Prepared<'_>, fits: &[&Fitted]) -> Vec<Option<Fitted>> {
+    let resets: Vec<Option<Model>> = fits
+        .par_iter()
+        .map(|f| {
+            let m = f.model.with_bound_values_reset(prep.runs.len())?;
+            let sims = prep.simulate(&m).ok()?;
+            (prep.ssr(&sims) < f.ssr).then_some(m)
+        })
+        .collect();
+    let mut jobs: Vec<(usize, Model)> = Vec::new();
+    for (i, (f, reset)) in fits.iter().zip(resets).enumerate() {
+        jobs.push((i, f.model.clone()));
+        jobs.extend(reset.map(|m| (i, m)));
+    }
+    let done: Vec<(usize, Fitted)> = jobs
+        .par_iter()
+        .filter_map(|(i, m)| Some((*i, fit_model_from(prep, m, Start::Own).ok()?)))
+        .collect();
+    let mut out: Vec<Option<Fitted>> = vec![None; fits.len()];
+    // (in job order: the first of equal SSRs kept, whatever the thread count)
+    for (i, g) in done {
+        let best = out[i].as_ref().map_or(fits[i].ssr, |b| b.ssr);
+        if g.ssr < best {
+            out[i] = Some(g);
+        }
+    }
+    out
+}
+
+/// `f`, fitted on another step of the same data, scored on `prep`'s: its values and
+/// their intervals kept; its simulations, NRMSE and SSR `prep`'s.
+fn rescored(prep: &Prepared<'_>, f: Fitted) -> Result<Fitted, IdentError> {
+    let sims = prep.simulate(&f.model)?;
+    let (nrmse, noise_floor) = prep.overall(&sims);
+    let ssr = prep.ssr(&sims);
+    Ok(Fitted {
+        sims,
+        nrmse,
+        noise_floor,
+        ssr,
+        ..f
+    })
+}
+
 /// What a candidate's fit is judged against.
 struct Judge {
     base_ssr: f64,
@@ -295,12 +396,11 @@ fn nameable(f: &Fitted) -> bool {
 /// absence would hold the pair in that basin).
 fn pair_step(
     prep: &Prepared<'_>,
+    search: &Prepared<'_>,
     base_model: &Model,
     judge: &Judge,
     cands: &[(Candidate, Option<Fitted>)],
     parametric: &[(Candidate, Option<Fitted>)],
-    refinements: &mut Vec<ShapeRefinement>,
-    notes: &mut Vec<String>,
 ) -> Vec<(Candidate, Option<Fitted>)> {
     let tops: Vec<&Fitted> = cands
         .iter()
@@ -343,15 +443,16 @@ fn pair_step(
             // simulates its whole grid, which the coordinate scan below replaces)
             if prep.kind == DataKind::SineSweep {
                 let fresh = base_model.with_effect(ea.effect).with_effect(eb.effect);
-                if let Ok(s) = searched_starts(prep, &fresh) {
+                if let Ok(s) = searched_starts(search, &fresh) {
                     starts.extend(s);
                 }
             }
             let ssr: Vec<f64> = starts
                 .iter()
                 .map(|m| {
-                    prep.simulate(m)
-                        .map_or(f64::INFINITY, |sims| prep.ssr(&sims))
+                    search
+                        .simulate(m)
+                        .map_or(f64::INFINITY, |sims| search.ssr(&sims))
                 })
                 .collect();
             let best = (0..starts.len())
@@ -359,10 +460,12 @@ fn pair_step(
                 .unwrap_or(0);
             // then improved a coordinate at a time on the simulation
             let start =
-                scan_coordinates(prep, &starts[best]).unwrap_or_else(|_| starts[best].clone());
-            (name, fit_model_from(prep, &start, Start::Own))
+                scan_coordinates(search, &starts[best]).unwrap_or_else(|_| starts[best].clone());
+            (name, fit_model_from(search, &start, Start::Own))
         })
         .collect();
+    // (scored at the chosen step; finished there by `finish_pairs` when they matter)
+    let fits = finish(prep, search, fits, 0);
     let mut pairs: Vec<(Candidate, Option<Fitted>)> = fits
         .into_iter()
         .filter(|(name, _)| !name.is_empty())
@@ -372,23 +475,104 @@ fn pair_step(
         })
         .collect();
     rank(&mut pairs);
-    if let Some((c, Some(f))) = pairs.first() {
-        if f.nrmse > REFINE_MARGIN * f.noise_floor {
-            let (name, mut fit) = (c.effect.clone(), f.clone());
-            let first_new = fit.model.effects.len() - 2;
-            for e in first_new..fit.model.effects.len() {
-                if let Some((r, refined)) = refine_or_note(prep, &fit, e, notes) {
-                    if r.kept {
-                        fit = refined;
-                    }
-                    refinements.push(r);
-                }
-            }
-            pairs[0] = (judge.candidate(name, &fit), Some(fit));
-            rank(&mut pairs);
+    pairs
+}
+
+/// The pairs of [`pair_step`] searched on an arm's coarse twin: the best two (the
+/// decision compares the first with the next) fitted on at the chosen step
+/// ([`finished`]), ranked again.
+fn finish_pairs(prep: &Prepared<'_>, judge: &Judge, pairs: &mut [(Candidate, Option<Fitted>)]) {
+    let top: Vec<&Fitted> = pairs
+        .iter()
+        .take(2)
+        .filter_map(|(_, f)| f.as_ref())
+        .collect();
+    let better = finished(prep, &top);
+    for (slot, g) in pairs.iter_mut().take(2).zip(better) {
+        if let Some(g) = g {
+            *slot = (judge.candidate(slot.0.effect.clone(), &g), Some(g));
         }
     }
-    pairs
+    rank(pairs);
+}
+
+/// The best pair's laws refined in their shape-free form when it stays above
+/// [`REFINE_MARGIN`] x the floor.
+fn refine_best_pair(
+    prep: &Prepared<'_>,
+    judge: &Judge,
+    pairs: &mut [(Candidate, Option<Fitted>)],
+    refinements: &mut Vec<ShapeRefinement>,
+    notes: &mut Vec<String>,
+) {
+    let Some((c, Some(f))) = pairs.first() else {
+        return;
+    };
+    if f.nrmse <= REFINE_MARGIN * f.noise_floor {
+        return;
+    }
+    let (name, mut fit) = (c.effect.clone(), f.clone());
+    let first_new = fit.model.effects.len() - 2;
+    for e in first_new..fit.model.effects.len() {
+        if let Some((r, refined)) = refine_or_note(prep, &fit, e, notes) {
+            if r.kept {
+                fit = refined;
+            }
+            refinements.push(r);
+        }
+    }
+    pairs[0] = (judge.candidate(name, &fit), Some(fit));
+    rank(pairs);
+}
+
+/// One effect never becomes two: each member of the best pair refitted alone from the
+/// pair's values, replacing its single candidate when that does better. A single fit
+/// can stop short of its own optimum (its starts far from it, its budget spent in a
+/// valley) where the pair's second effect only makes up for that: the member alone
+/// from the pair's values then does as well as the pair, and the pair is not decisive
+/// against it. Only for a pair that could be named (one left above the margin is no
+/// verdict).
+fn refit_pair_members(
+    prep: &Prepared<'_>,
+    judge: &Judge,
+    pairs: &[(Candidate, Option<Fitted>)],
+    cands: &mut [(Candidate, Option<Fitted>)],
+    notes: &mut Vec<String>,
+) {
+    let Some((_, Some(pf))) = pairs
+        .first()
+        .filter(|(_, f)| f.as_ref().is_some_and(nameable))
+    else {
+        return;
+    };
+    let n_eff = pf.model.effects.len();
+    let refits: Vec<Fitted> = (n_eff.saturating_sub(2)..n_eff)
+        .into_par_iter()
+        .filter_map(|drop| {
+            let mut m = pf.model.clone();
+            m.effects.remove(drop);
+            fit_model_from(prep, &m, Start::Own).ok()
+        })
+        .collect();
+    for f in refits {
+        let Some(name) = f.model.effects.last().map(|e| e.effect.name().to_string()) else {
+            continue;
+        };
+        if let Some(slot) = cands.iter_mut().find(|(c, _)| c.effect == name) {
+            if slot.1.as_ref().is_none_or(|g| f.ssr < g.ssr) {
+                notes.push(format!(
+                    "{name} refitted alone from the best pair's values leaves NRMSE {:.4} ({:.2}x the floor; its own fit had stopped at {}). ",
+                    f.nrmse,
+                    f.nrmse / f.noise_floor.max(f64::MIN_POSITIVE),
+                    slot.1
+                        .as_ref()
+                        .map_or("-".into(), |g| format!("{:.4}", g.nrmse))
+                ));
+                *slot = (judge.candidate(name, &f), Some(f));
+            }
+        }
+    }
+    rank(cands);
 }
 
 /// Fits the baseline and every applicable registered effect; ranks and decides.
@@ -449,18 +633,22 @@ pub fn diagnose(
     // At the noise floor no candidate can be decisive: screen them (starting values,
     // one simulation each) instead of fitting them in the time domain.
     let at_floor = base.nrmse <= FLOOR_MARGIN * base.noise_floor;
+    // (an arm's searches at its coarse step, finished at the chosen one: `finish`)
+    let coarse = prep.coarse_twin()?;
+    let search = coarse.as_ref().unwrap_or(prep);
     let fits: Vec<(String, Result<Fitted, IdentError>)> = effects
         .par_iter()
         .map(|e| {
             let m = base.model.with_effect(*e);
             let f = if at_floor {
-                screen_model(prep, &m)
+                screen_model(search, &m)
             } else {
-                fit_model(prep, &m)
+                fit_model(search, &m)
             };
             (e.name().to_string(), f)
         })
         .collect();
+    let fits = finish(prep, search, fits, FINALISTS);
     let excess = (base.ssr - ssr_floor).max(0.0);
     let judge = Judge {
         base_ssr: base.ssr,
@@ -501,56 +689,32 @@ pub fn diagnose(
     if !at_floor {
         if let Some((_, Some(f))) = cands.first() {
             if f.nrmse > REFINE_MARGIN * f.noise_floor {
-                pairs = pair_step(
-                    prep,
-                    &base.model,
-                    &judge,
-                    &cands,
-                    &parametric,
-                    &mut refinements,
-                    &mut notes,
-                );
+                pairs = pair_step(prep, search, &base.model, &judge, &cands, &parametric);
             }
         }
     }
-    // One effect never becomes two: each member of the best pair refitted alone from
-    // the pair's values. A single fit can stop short of its own optimum (its starts far
-    // from it, its budget spent in a valley) where the pair's second effect only makes
-    // up for that: the member alone from the pair's values then does as well as the
-    // pair, and the pair is not decisive against it.
-    // (only for a pair that could be named: one left above the margin is no verdict)
-    if let Some((_, Some(pf))) = pairs
-        .first()
-        .filter(|(_, f)| f.as_ref().is_some_and(nameable))
-    {
-        let n_eff = pf.model.effects.len();
-        let refits: Vec<Fitted> = (n_eff.saturating_sub(2)..n_eff)
-            .into_par_iter()
-            .filter_map(|drop| {
-                let mut m = pf.model.clone();
-                m.effects.remove(drop);
-                fit_model_from(prep, &m, Start::Own).ok()
-            })
-            .collect();
-        for f in refits {
-            let Some(name) = f.model.effects.last().map(|e| e.effect.name().to_string()) else {
-                continue;
-            };
-            if let Some(slot) = cands.iter_mut().find(|(c, _)| c.effect == name) {
-                if slot.1.as_ref().is_none_or(|g| f.ssr < g.ssr) {
-                    notes.push(format!(
-                        "{name} refitted alone from the best pair's values leaves NRMSE {:.4} ({:.2}x the floor; its own fit had stopped at {}). ",
-                        f.nrmse,
-                        f.nrmse / f.noise_floor.max(f64::MIN_POSITIVE),
-                        slot.1
-                            .as_ref()
-                            .map_or("-".into(), |g| format!("{:.4}", g.nrmse))
-                    ));
-                    *slot = (judge.candidate(name, &f), Some(f));
-                }
-            }
+    // The pair guard (`refit_pair_members`) first from the pairs as searched: when it
+    // brings a single to the floor no pair can be decisive, and pairs searched on an
+    // arm's coarse twin need not be finished at the chosen step. Otherwise the pairs
+    // are finished (and the best refined), and the guard tried again from the values
+    // they reach (the coarse search may share an effect's part between the two
+    // members differently: on example_arm_joint_friction the 1 ms pair's values do not
+    // lead joint_friction alone to the floor, the finished pair's do).
+    let single_at_floor = |cands: &[(Candidate, Option<Fitted>)]| {
+        cands
+            .first()
+            .and_then(|(_, f)| f.as_ref())
+            .is_some_and(|f| f.nrmse <= FLOOR_MARGIN * f.noise_floor)
+    };
+    if coarse.is_some() {
+        refit_pair_members(prep, &judge, &pairs, &mut cands, &mut notes);
+    }
+    if !pairs.is_empty() && !single_at_floor(&cands) {
+        if coarse.is_some() {
+            finish_pairs(prep, &judge, &mut pairs);
         }
-        rank(&mut cands);
+        refine_best_pair(prep, &judge, &mut pairs, &mut refinements, &mut notes);
+        refit_pair_members(prep, &judge, &pairs, &mut cands, &mut notes);
     }
     let single_decisive = !at_floor && decisive_first(&cands, base.ssr, ssr_floor, n);
     // A pair is decisive when it is decisive against the best single candidate (as a

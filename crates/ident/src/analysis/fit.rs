@@ -180,17 +180,22 @@ impl Residuals for FrfProblem<'_, '_> {
 }
 
 /// The starting grid's values of a parameter: `npts` points spread over its bounds
-/// (log-spaced on a log scale, at most six decades above the lower bound), then its
+/// (log-spaced on a log scale over at most six decades, see below), then its
 /// starting value.
 fn grid_axis(s: &ParamSpec, npts: usize) -> Vec<f64> {
-    let (lo, hi) = (
-        s.lower,
-        s.upper.min(if s.log_scale {
-            s.lower * 1e6
-        } else {
-            f64::INFINITY
-        }),
-    );
+    // A log-scale axis spans at most 6 decades: up from a positive lower bound, down
+    // from the upper bound when the lower one is 0 (a friction's viscous coefficient
+    // on [0, 1e3]: 1e-3 to 1e3; a linear axis there put every point but the start on
+    // 0, and the hidden 0.1 was never tried), around the start when neither bounds it.
+    let (lo, hi) = if !s.log_scale {
+        (s.lower, s.upper)
+    } else if s.lower > 0.0 {
+        (s.lower, s.upper.min(s.lower * 1e6))
+    } else if s.upper.is_finite() {
+        (s.upper * 1e-6, s.upper)
+    } else {
+        (s.initial.abs() * 1e-3, s.initial.abs() * 1e3)
+    };
     let mut v: Vec<f64> = (0..npts)
         .map(|k| {
             let a = (k as f64 + 0.5) / npts as f64;

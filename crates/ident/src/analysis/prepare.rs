@@ -295,6 +295,16 @@ impl<'a> Prepared<'a> {
         self
     }
 
+    /// The same data at an arm's coarsest step (refinement 1, steps of at most
+    /// [`crate::plant::ARM_MAX_STEP_S`]) when this one is finer, where a diagnosis
+    /// searches ([`super::diagnose`]); `None` otherwise.
+    pub fn coarse_twin(&self) -> Result<Option<Prepared<'a>>, IdentError> {
+        if self.kind != DataKind::ArmMoves || self.arm_refinement <= 1 {
+            return Ok(None);
+        }
+        Ok(Some(Self::with_substeps(self.ds, self.substeps)?))
+    }
+
     /// Simulates `model` on every run (in parallel, results in run order); returns, for
     /// each run, its stacked channels' simulated values concatenated: the primary
     /// channel at every sample (`y[..n]`, n samples), then each of

@@ -7,8 +7,8 @@
 //! "none found" on >= 95% of the controls, and the NRMSE after the winner within 1.5x
 //! the noise floor.
 //!
-//! `#[ignore]`d for its time (each diagnosis 10-60 s in the test profile on 2 shared
-//! cores):
+//! `#[ignore]`d for its time (each diagnosis 3-25 s in the test profile on 2 cores,
+//! about 10 min for the whole study):
 //! `cargo test --workspace --test ident arm_confusion -- --ignored --nocapture`.
 //! Filters: `CONFUSION_EFFECTS=link_flexibility,control` (comma-separated effect names;
 //! `control` the controls), `CONFUSION_SETTINGS=0` (magnitude, 0 or 1),
