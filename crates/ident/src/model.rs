@@ -519,10 +519,10 @@ impl Model {
 
     /// The model with every fitted effect parameter that sits on one of its bounds
     /// (within the margin [`crate::fitting::strictly_inside`] keeps a start from them)
-    /// back at the effect's default; `None` when none does. A least-squares fit started
-    /// on a bound stays there (the map of a bounded parameter is flat at its bounds):
-    /// where a value was pinned by something other than the data at hand (a search at a
-    /// coarser step), the fit restarts it from the default instead.
+    /// back at the effect's default; `None` when none does. A least-squares fit that
+    /// reaches a bound or starts on one stays there (the map of a bounded parameter is
+    /// flat at its bounds): [`crate::analysis::fit_model_from`] restarts such values
+    /// from the defaults when the model is closer to the data there.
     pub fn with_bound_values_reset(&self, n_runs: usize) -> Option<Model> {
         let mut m = self.clone();
         let mut any = false;

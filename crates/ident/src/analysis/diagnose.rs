@@ -205,38 +205,18 @@ fn finish(
 }
 
 /// Each of `fits` (fitted on an arm's coarse twin, scored at `prep`'s step) fitted on at
-/// `prep`'s step from its values, and, when some of them sat on a bound (pinned by the
-/// coarse step's own error: a flexible link's damping ratio at its upper bound, say)
-/// and the model is closer to the data with those at their defaults (one simulation),
-/// also from there: a fit does not leave a bound it starts on. For each, the better
-/// fit found when it improves on the one given.
+/// `prep`'s step from its values ([`fit_model_from`]: values the coarse step's own
+/// error pinned on a bound, a flexible link's damping ratio at its upper bound say,
+/// restarted from their defaults when that is closer to the data). For each, the fit
+/// when it improves on the one given.
 fn finished(prep: &Prepared<'_>, fits: &[&Fitted]) -> Vec<Option<Fitted>> {
-    let resets: Vec<Option<Model>> = fits
-        .par_iter()
+    fits.par_iter()
         .map(|f| {
-            let m = f.model.with_bound_values_reset(prep.runs.len())?;
-            let sims = prep.simulate(&m).ok()?;
-            (prep.ssr(&sims) < f.ssr).then_some(m)
+            fit_model_from(prep, &f.model, Start::Own)
+                .ok()
+                .filter(|g| g.ssr < f.ssr)
         })
-        .collect();
-    let mut jobs: Vec<(usize, Model)> = Vec::new();
-    for (i, (f, reset)) in fits.iter().zip(resets).enumerate() {
-        jobs.push((i, f.model.clone()));
-        jobs.extend(reset.map(|m| (i, m)));
-    }
-    let done: Vec<(usize, Fitted)> = jobs
-        .par_iter()
-        .filter_map(|(i, m)| Some((*i, fit_model_from(prep, m, Start::Own).ok()?)))
-        .collect();
-    let mut out: Vec<Option<Fitted>> = vec![None; fits.len()];
-    // (in job order: the first of equal SSRs kept, whatever the thread count)
-    for (i, g) in done {
-        let best = out[i].as_ref().map_or(fits[i].ssr, |b| b.ssr);
-        if g.ssr < best {
-            out[i] = Some(g);
-        }
-    }
-    out
+        .collect()
 }
 
 /// `f`, fitted on another step of the same data, scored on `prep`'s: its values and
@@ -698,8 +678,9 @@ pub fn diagnose(
     // arm's coarse twin need not be finished at the chosen step. Otherwise the pairs
     // are finished (and the best refined), and the guard tried again from the values
     // they reach (the coarse search may share an effect's part between the two
-    // members differently: on example_arm_joint_friction the 1 ms pair's values do not
-    // lead joint_friction alone to the floor, the finished pair's do).
+    // members differently: on example_arm_joint_friction, before the starting grid
+    // spanned the viscous coefficient, the 1 ms pair's values did not lead
+    // joint_friction alone to the floor, the finished pair's did).
     let single_at_floor = |cands: &[(Candidate, Option<Fitted>)]| {
         cands
             .first()
