@@ -524,27 +524,30 @@ impl Model {
     /// flat at its bounds): [`crate::analysis::fit_model_from`] restarts such values
     /// from the defaults when the model is closer to the data there.
     pub fn with_bound_values_reset(&self, n_runs: usize) -> Option<Model> {
-        let mut m = self.clone();
         let mut any = false;
-        for s in self.free_slots(n_runs) {
-            let Owner::Effect(e) = s.owner else { continue };
-            let Some(def) = self.effects[e].effect.params().get(s.index) else {
-                continue;
-            };
-            let p = self.param(&s);
-            let v = s.run.map_or(p.value, |r| p.value_for(r));
-            // (bit for bit: a value the margin moves at all is on a bound)
-            if crate::fitting::strictly_inside(v, p.lower, p.upper).to_bits() == v.to_bits() {
-                continue;
-            }
-            any = true;
-            let q = m.param_mut(&s);
-            match (s.run, q.run_values.as_mut()) {
-                (Some(r), Some(vals)) if r < vals.len() => vals[r] = def.default,
-                _ => q.value = def.default,
-            }
-        }
-        any.then_some(m)
+        let x: Vec<f64> = self
+            .free_slots(n_runs)
+            .iter()
+            .map(|s| {
+                let p = self.param(s);
+                let v = s.run.map_or(p.value, |r| p.value_for(r));
+                let default = match s.owner {
+                    Owner::Effect(e) => self.effects[e].effect.params().get(s.index),
+                    _ => None,
+                };
+                // (bit for bit: a value the margin moves at all is on a bound)
+                let on_bound =
+                    crate::fitting::strictly_inside(v, p.lower, p.upper).to_bits() != v.to_bits();
+                match default {
+                    Some(d) if on_bound => {
+                        any = true;
+                        d.default
+                    }
+                    _ => v,
+                }
+            })
+            .collect();
+        any.then(|| self.with_values(&x, n_runs))
     }
 
     /// The model with the free parameters set to `x` (in [`Self::free_slots`] order).

@@ -5,6 +5,7 @@ use longreach_drive::effects::{DataKind, REGISTRY};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::fit::fit_simulated;
 use super::{
     compare, describe, fit_model, fit_model_from, refine_shape, scan_coordinates, screen_model,
     searched_starts, signatures, Comparison, Fitted, Prepared, RunResonance, ShapeRefinement,
@@ -212,7 +213,8 @@ fn finish(
 fn finished(prep: &Prepared<'_>, fits: &[&Fitted]) -> Vec<Option<Fitted>> {
     fits.par_iter()
         .map(|f| {
-            fit_model_from(prep, &f.model, Start::Own)
+            // (`f` was scored at `prep`'s step: its simulations start the fit)
+            fit_simulated(prep, &f.model, Start::Own, Some(f.sims.clone()))
                 .ok()
                 .filter(|g| g.ssr < f.ssr)
         })
@@ -366,9 +368,10 @@ fn nameable(f: &Fitted) -> bool {
 /// The pair step: the best single candidates (score above [`MIN_SCORE`], at most
 /// [`PAIR_CANDIDATES`]) fitted two at a time, each pair from the start that simulates
 /// closest to the data among its own search of starting values and its two single fits
-/// with the other's effect added at its fitted values. Returns the pairs as candidates
-/// scored against the baseline, best first, with their fits (the best one's laws
-/// refined in their shape-free form when it stays above [`REFINE_MARGIN`]).
+/// with the other's effect added at its fitted values, fitted on `search` (an arm's
+/// coarse twin, else `prep`) and scored on `prep`. Returns the pairs as candidates
+/// scored against the baseline, best first, with their fits (finished at the chosen
+/// step by [`finish_pairs`] and refined by [`refine_best_pair`] when they matter).
 ///
 /// `cands` are the single candidates ranked; `parametric` the same fits with their
 /// catalog laws (before any refinement of their shape): a pair starts from those, its
@@ -565,7 +568,9 @@ fn refit_pair_members(
 ///    their laws refined first, so that a further effect is named only against the best
 ///    the existing ones can do;
 /// 2. every candidate fitted with the baseline (screened at its starting values when
-///    the baseline is at the floor), scored by BIC and ranked;
+///    the baseline is at the floor), scored by BIC and ranked; on an arm whose chosen
+///    step is finer than 1 ms, fitted at 1 ms and finished at the chosen step
+///    ([`finish`]);
 /// 3. the best one's law refined in its shape-free form when it stays above
 ///    [`REFINE_MARGIN`] x the floor;
 /// 4. if it still does, the pair step ([`pair_step`]): two effects at once;

@@ -43,6 +43,16 @@ impl<'p, 'a> SimCache<'p, 'a> {
         }
     }
 
+    /// Records `sims` as the model's simulation at the free values `x` (simulated
+    /// elsewhere on the same prepared data).
+    fn seed(&self, x: &[f64], sims: std::sync::Arc<Vec<Vec<f64>>>) {
+        let key: Vec<u64> = x.iter().map(|v| v.to_bits()).collect();
+        let mut entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
+        if !entries.iter().any(|(k, _)| *k == key) {
+            entries.push((key, sims));
+        }
+    }
+
     /// The compared channel of every run of the model at the free values `x`.
     fn simulate(&self, x: &[f64]) -> Result<std::sync::Arc<Vec<Vec<f64>>>, IdentError> {
         let key: Vec<u64> = x.iter().map(|v| v.to_bits()).collect();
@@ -617,17 +627,29 @@ pub fn fit_model_from(
     model: &Model,
     start: Start,
 ) -> Result<Fitted, IdentError> {
-    let first = fit_once(prep, model, start)?;
+    fit_simulated(prep, model, start, None)
+}
+
+/// [`fit_model_from`] where `model` was already simulated on `prep` (`sims`, as
+/// [`Prepared::simulate`] returns them): the fit starts from those instead of
+/// simulating it again.
+pub(crate) fn fit_simulated(
+    prep: &Prepared<'_>,
+    model: &Model,
+    start: Start,
+    sims: Option<Vec<Vec<f64>>>,
+) -> Result<Fitted, IdentError> {
+    let first = fit_once(prep, model, start, sims)?;
     let Some(reset) = first.model.with_bound_values_reset(prep.runs.len()) else {
         return Ok(first);
     };
-    let closer = prep
-        .simulate(&reset)
-        .is_ok_and(|sims| prep.ssr(&sims) < first.ssr);
-    if !closer {
+    let Ok(reset_sims) = prep.simulate(&reset) else {
+        return Ok(first);
+    };
+    if prep.ssr(&reset_sims) >= first.ssr {
         return Ok(first);
     }
-    match fit_once(prep, &reset, Start::Own) {
+    match fit_once(prep, &reset, Start::Own, Some(reset_sims)) {
         Ok(again) if again.ssr < first.ssr => Ok(Fitted {
             nrmse_before: first.nrmse_before,
             ..again
@@ -636,8 +658,13 @@ pub fn fit_model_from(
     }
 }
 
-/// [`fit_model_from`] without the restart from the defaults.
-fn fit_once(prep: &Prepared<'_>, model: &Model, start: Start) -> Result<Fitted, IdentError> {
+/// [`fit_simulated`] without the restart from the defaults.
+fn fit_once(
+    prep: &Prepared<'_>,
+    model: &Model,
+    start: Start,
+    sims: Option<Vec<Vec<f64>>>,
+) -> Result<Fitted, IdentError> {
     let cache = SimCache::new(prep, model);
     let n_runs = prep.runs.len();
     let own: Vec<f64> = model.fit_specs(n_runs).iter().map(|s| s.initial).collect();
@@ -651,10 +678,16 @@ fn fit_once(prep: &Prepared<'_>, model: &Model, start: Start) -> Result<Fitted, 
             s.run.map_or(p.value, |r| p.value_for(r))
         })
         .collect();
-    let sims0 = if raw == own {
-        cache.simulate(&own)?
-    } else {
-        std::sync::Arc::new(prep.simulate(model)?)
+    let sims0 = match sims {
+        Some(s) => {
+            let s = std::sync::Arc::new(s);
+            if raw == own {
+                cache.seed(&own, s.clone());
+            }
+            s
+        }
+        None if raw == own => cache.simulate(&own)?,
+        None => std::sync::Arc::new(prep.simulate(model)?),
     };
     let (nrmse_before, noise_floor) = prep.overall(&sims0);
     let mut starts = match start {
