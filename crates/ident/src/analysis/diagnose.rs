@@ -582,7 +582,19 @@ pub fn diagnose(
     prep: &Prepared<'_>,
     model: &Model,
 ) -> Result<(Diagnosis, Fitted, Option<Fitted>), IdentError> {
-    let mut base = fit_model(prep, model)?;
+    // (an arm's searches at its coarse step, finished at the chosen one: `finish`)
+    let coarse = prep.coarse_twin()?;
+    let search = coarse.as_ref().unwrap_or(prep);
+    // The baseline too: a model written by `diagnose` holds its effects, whose search
+    // of starting values at the chosen step took 87 of the 88 s of `diagnose --model`
+    // on example_arm_joint_friction's written model.
+    let mut base = match &coarse {
+        None => fit_model(prep, model)?,
+        Some(c) => {
+            let f = rescored(prep, fit_model(c, model)?)?;
+            finished(prep, &[&f]).pop().flatten().unwrap_or(f)
+        }
+    };
     let mut refinements = Vec::new();
     let mut notes = Vec::new();
     // A model that already holds effects and still misses the data (by more than the
@@ -618,9 +630,6 @@ pub fn diagnose(
     // At the noise floor no candidate can be decisive: screen them (starting values,
     // one simulation each) instead of fitting them in the time domain.
     let at_floor = base.nrmse <= FLOOR_MARGIN * base.noise_floor;
-    // (an arm's searches at its coarse step, finished at the chosen one: `finish`)
-    let coarse = prep.coarse_twin()?;
-    let search = coarse.as_ref().unwrap_or(prep);
     let fits: Vec<(String, Result<Fitted, IdentError>)> = effects
         .par_iter()
         .map(|e| {

@@ -225,6 +225,25 @@ fn is_effect(slot: &crate::model::Slot) -> bool {
     matches!(slot.owner, crate::model::Owner::Effect(_))
 }
 
+/// Whether a free effect parameter holds a fitted value the starting grid should keep:
+/// one of an effect before the model's last whose values are not all their defaults (a
+/// model that already holds fitted effects, with a candidate added last). Its grid
+/// axis would only multiply the grid (5-6 points per axis, simulated on arms) and take
+/// the place of the new effect's own parameters among the 3 gridded: the candidates
+/// screened on the written model of example_arm_joint_friction gridded its friction's
+/// two values and one of theirs, 78 of the 84 s of `diagnose --model`.
+fn already_fitted(model: &Model, slot: &crate::model::Slot) -> bool {
+    let crate::model::Owner::Effect(e) = slot.owner else {
+        return false;
+    };
+    let u = &model.effects[e];
+    e + 1 < model.effects.len()
+        && u.params
+            .iter()
+            .zip(u.effect.params())
+            .any(|(p, d)| p.value.to_bits() != d.default.to_bits())
+}
+
 /// Whether a free parameter is the base's `k1_scale`.
 fn is_k1_scale(model: &Model, slot: &crate::model::Slot) -> bool {
     slot.owner == crate::model::Owner::Base
@@ -305,7 +324,7 @@ fn starting_values(
     let slots = model.free_slots(prep.runs.len());
     let gridded: Vec<usize> = (0..specs.len())
         .filter(|&i| {
-            is_effect(&slots[i])
+            (is_effect(&slots[i]) && !already_fitted(model, &slots[i]))
                 || (prep.kind == DataKind::SineSweep && is_k1_scale(model, &slots[i]))
         })
         .take(3)
