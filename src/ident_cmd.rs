@@ -173,6 +173,9 @@ fn check_finite(what: &str, values: &[(String, f64)]) -> Result<()> {
 }
 
 fn load(data: &DataArgs) -> Result<(Dataset, Model)> {
+    if let Some(p) = &data.json {
+        crate::output::check_output_file(p, "--json")?;
+    }
     let ds = Dataset::load(&data.dataset)?;
     let model = match &data.model {
         None => Model::baseline(&ds).map_err(message)?,
@@ -251,6 +254,9 @@ fn prepare<'a>(
 
 /// Runs `fit`.
 pub fn run_fit(a: &FitArgs) -> Result<ExitCode> {
+    if let Some(p) = &a.write_model {
+        crate::output::check_output_file(p, "--write-model")?;
+    }
     let (ds, model) = load(&a.data)?;
     let (prep, _) = prepare(&ds, &model)?;
     let f = analysis::fit_model(&prep, &model).map_err(message)?;
@@ -481,6 +487,9 @@ fn missing_words(d: &analysis::Diagnosis) -> String {
 
 /// Runs `diagnose`.
 pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
+    if let Some(p) = &a.write_model {
+        crate::output::check_output_file(p, "--write-model")?;
+    }
     let (ds, model) = load(&a.data)?;
     let rec = a.rerun.recorder(
         &format!("diagnose {}", a.data.dataset.display()),

@@ -37,3 +37,28 @@ pub fn output_dir(dir: &Path, flag: &str) -> Result<()> {
         )
     })
 }
+
+/// Checks, before the work, that the file of `flag` can be written at `path`: its
+/// folder exists and the path is not itself a folder. A fit or a diagnosis that runs
+/// for a minute must not end on a path it cannot write, its result lost.
+pub fn check_output_file(path: &Path, flag: &str) -> Result<()> {
+    if path.is_dir() {
+        anyhow::bail!(
+            "{flag} {}: it is an existing folder\n  fix: give a file name (e.g. inside that folder)",
+            path.display()
+        );
+    }
+    let folder = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !folder.is_dir() {
+        anyhow::bail!(
+            "{flag} {}: the folder {} does not exist\n  fix: create it first (mkdir -p {}) or give another path; nothing was run",
+            path.display(),
+            folder.display(),
+            folder.display()
+        );
+    }
+    Ok(())
+}

@@ -170,6 +170,33 @@ fn broken_dataset_fails_clearly_and_writes_nothing() {
     assert!(!j.exists());
 }
 
+/// An output file whose folder does not exist is refused before the work (a diagnosis
+/// of a minute is not lost at its end), saying which flag, which folder and the fix.
+#[test]
+fn output_into_a_missing_folder_is_refused_before_the_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("no_such_folder");
+    let ds = example("example_relax_control");
+    for (cmd, flag) in [
+        ("diagnose", "--write-model"),
+        ("diagnose", "--json"),
+        ("fit", "--write-model"),
+        ("compare", "--json"),
+    ] {
+        let target = missing.join("out.file");
+        let (ok, out, err) =
+            longreach(&[cmd, ds.to_str().unwrap(), flag, target.to_str().unwrap()]);
+        assert!(!ok, "{cmd} {flag}");
+        assert!(
+            err.contains(flag) && err.contains("no_such_folder") && err.contains("fix:"),
+            "{cmd} {flag}: {err}"
+        );
+        // refused before anything ran: no result printed
+        assert!(out.is_empty(), "{cmd} {flag}: {out}");
+        assert!(!missing.exists());
+    }
+}
+
 /// Issue 3 acceptance on the example sweeps through the CLI, and issue 17's (the refined
 /// law within 1.5x the noise floor, a second pass names nothing; ~3-4 min on 2 cores):
 /// `cargo test --test cli -- --ignored --nocapture ident_cli::`.
