@@ -3,8 +3,11 @@
 //! Sweeps: the rig plant of [`longreach_drive::RigModel`] driven by the recorded input
 //! angle (the command when the input encoder shows exactly the quantised command, since
 //! the command is then the true input to within the encoder's resolution), stepped at
-//! the data's sample period divided by `substeps`, the input interpolated linearly
-//! between samples. Relaxation: eq. 6 in closed form for the paper's four-element law,
+//! the data's sample period divided by `substeps`, the input interpolated between
+//! samples by a cubic whose rate is continuous (Catmull-Rom; a linear interpolation
+//! steps the rate at every sample, and a rope whose tension follows its strain rate
+//! then rings at the step's parity: docs/models.md, "The sweep input between
+//! samples"). Relaxation: eq. 6 in closed form for the paper's four-element law,
 //! the exact-hold rope stepper otherwise. Cyclic: the rope stepper on the measured
 //! strain.
 
@@ -104,14 +107,38 @@ pub fn simulate_sweep(
         return Ok(out);
     }
     push(&mut out, &st);
-    for w in input_rad.windows(2) {
+    for i in 0..n - 1 {
+        let (u0, u1) = (input_rad[i], input_rad[i + 1]);
+        // Catmull-Rom slopes (per sample); one-sided at the ends.
+        let m0 = if i > 0 {
+            0.5 * (u1 - input_rad[i - 1])
+        } else {
+            u1 - u0
+        };
+        let m1 = if i + 2 < n {
+            0.5 * (input_rad[i + 2] - u0)
+        } else {
+            u1 - u0
+        };
         for k in 1..=substeps {
             let a = k as f64 / substeps as f64;
-            model.step(&mut st, w[0] + a * (w[1] - w[0]))?;
+            model.step(&mut st, hermite(u0, u1, m0, m1, a))?;
         }
         push(&mut out, &st);
     }
     Ok(out)
+}
+
+/// The cubic Hermite interpolant at `a` in [0, 1] of the interval from `u0` (slope
+/// `m0` per interval) to `u1` (slope `m1`).
+#[inline]
+fn hermite(u0: f64, u1: f64, m0: f64, m1: f64, a: f64) -> f64 {
+    let a2 = a * a;
+    let a3 = a2 * a;
+    (2.0 * a3 - 3.0 * a2 + 1.0) * u0
+        + (a3 - 2.0 * a2 + a) * m0
+        + (-2.0 * a3 + 3.0 * a2) * u1
+        + (a3 - a2) * m1
 }
 
 /// Simulates a sweep run of a dataset with `law`.
