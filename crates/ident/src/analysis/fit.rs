@@ -244,6 +244,20 @@ fn already_fitted(model: &Model, slot: &crate::model::Slot) -> bool {
             .any(|(p, d)| p.value.to_bits() != d.default.to_bits())
 }
 
+/// The free parameters (indices into the model's fit specs) the starting grid spans:
+/// at most 3, the effect parameters not [`already_fitted`] first in the model's order,
+/// and on a sweep the base's `k1_scale`.
+fn gridded_params(model: &Model, kind: DataKind, n_runs: usize) -> Vec<usize> {
+    let slots = model.free_slots(n_runs);
+    (0..slots.len())
+        .filter(|&i| {
+            (is_effect(&slots[i]) && !already_fitted(model, &slots[i]))
+                || (kind == DataKind::SineSweep && is_k1_scale(model, &slots[i]))
+        })
+        .take(3)
+        .collect()
+}
+
 /// Whether a free parameter is the base's `k1_scale`.
 fn is_k1_scale(model: &Model, slot: &crate::model::Slot) -> bool {
     slot.owner == crate::model::Owner::Base
@@ -321,14 +335,7 @@ fn starting_values(
     let (prep, model) = (cache.prep, cache.model);
     let specs = model.fit_specs(prep.runs.len());
     let mut x0: Vec<f64> = specs.iter().map(|s| s.initial).collect();
-    let slots = model.free_slots(prep.runs.len());
-    let gridded: Vec<usize> = (0..specs.len())
-        .filter(|&i| {
-            (is_effect(&slots[i]) && !already_fitted(model, &slots[i]))
-                || (prep.kind == DataKind::SineSweep && is_k1_scale(model, &slots[i]))
-        })
-        .take(3)
-        .collect();
+    let gridded = gridded_params(model, prep.kind, prep.runs.len());
     if gridded.is_empty() {
         return Ok(vec![x0]);
     }
@@ -472,6 +479,7 @@ fn starting_values(
         // and the catalog's (a strong effect pulls the baseline's constants far from
         // where the model with the effect has its optimum).
         let law = &model.law;
+        let slots = model.free_slots(prep.runs.len());
         let catalog: Vec<Option<f64>> = specs
             .iter()
             .enumerate()
@@ -794,4 +802,82 @@ fn fit_once(
         ssr,
         sims,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{BaseParam, ParamDef, Slot};
+    use crate::{Dataset, DatasetKind, RelaxationDataset, RelaxationSpecimen};
+    use longreach_drive::effects;
+
+    /// The sweep baseline of dyneema2 with `k1_scale` free.
+    fn sweep_base() -> Model {
+        let ds = Dataset {
+            dir: Default::default(),
+            title: String::new(),
+            kind: DatasetKind::Relaxation(RelaxationDataset {
+                specimen: RelaxationSpecimen {
+                    rope: "dyneema2".into(),
+                    length_m: 0.1,
+                    strain: 0.015,
+                },
+                runs: Vec::new(),
+            }),
+        };
+        let mut m = Model::baseline(&ds).unwrap();
+        m.base = vec![ParamDef::base(BaseParam::K1Scale, 1.0, 0.2, 5.0)];
+        m
+    }
+
+    /// (owner effect's name or "base", parameter index) of every gridded parameter.
+    fn gridded_names(m: &Model) -> Vec<(String, usize)> {
+        let slots: Vec<Slot> = m.free_slots(1);
+        gridded_params(m, DataKind::SineSweep, 1)
+            .into_iter()
+            .map(|i| match slots[i].owner {
+                crate::model::Owner::Effect(e) => {
+                    (m.effects[e].effect.name().to_string(), slots[i].index)
+                }
+                _ => ("base".to_string(), slots[i].index),
+            })
+            .collect()
+    }
+
+    /// A model that already holds a fitted effect (values off its defaults) grids the
+    /// added candidate's parameters, not the fitted one's: before, joint friction's two
+    /// fitted values took two of the 3 gridded places and a 2-parameter candidate had
+    /// one of its own gridded. An effect still at its defaults (not yet fitted) is
+    /// gridded, and the candidate alone grids its own.
+    #[test]
+    fn the_grid_spans_the_candidate_not_the_effects_already_fitted() {
+        let friction = effects::find("joint_friction").unwrap();
+        let retardation = effects::find("extra_retardation").unwrap();
+        let mut held = sweep_base().with_effect(friction);
+        held.effects[0].params[0].value = 0.7;
+        held.effects[0].params[1].value = 0.05;
+        let m = held.with_effect(retardation);
+        assert_eq!(
+            gridded_names(&m),
+            [
+                ("base".to_string(), 0),
+                ("extra_retardation".to_string(), 0),
+                ("extra_retardation".to_string(), 1)
+            ]
+        );
+        // at its defaults the first effect is a candidate too: it comes first
+        let fresh = sweep_base().with_effect(friction).with_effect(retardation);
+        assert_eq!(
+            gridded_names(&fresh),
+            [
+                ("base".to_string(), 0),
+                ("joint_friction".to_string(), 0),
+                ("joint_friction".to_string(), 1)
+            ]
+        );
+        // the last effect is gridded even when its values are off their defaults
+        let mut alone = sweep_base().with_effect(retardation);
+        alone.effects[0].params[0].value *= 2.0;
+        assert_eq!(gridded_names(&alone).len(), 3);
+    }
 }
