@@ -8,10 +8,10 @@
 //!
 //! | hidden | loop step | with tensions | without |
 //! |---|---|---|---|
-//! | 0.01, 2e-5 | 2.5 ms | -0.00%, +23.9% | +0.03%, +33.9% |
-//! | | 1.25 ms | -0.02%, -0.3% | +0.00%, +3.8% |
-//! | 0.01, 1e-4 | 2.5 ms | +0.04%, +10.1% | +0.22%, +19.3% |
-//! | | 1.25 ms | -0.03%, +0.8% | -0.01%, +1.9% |
+//! | 0.01, 2e-5 | 2.5 ms | -0.01%, +26.5% | +0.03%, +38.9% |
+//! | | 1.25 ms | -0.02%, +0.0% | -0.00%, +3.5% |
+//! | 0.01, 1e-4 | 2.5 ms | +0.05%, +10.8% | +0.24%, +20.5% |
+//! | | 1.25 ms | -0.01%, +0.8% | +0.01%, +2.2% |
 //!
 //! The inertia shows in the tension difference across the relays; at the loop's
 //! default 2.5 ms what is left is its step error (backward-Euler relay pulleys), so
