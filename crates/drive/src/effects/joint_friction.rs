@@ -80,6 +80,7 @@ impl Effect for JointFriction {
             value_at_zero: None,
             non_decreasing: false,
             max_value: 1e3,
+            log_knots: true,
             replaces: &["coulomb_n_m"],
         })
     }

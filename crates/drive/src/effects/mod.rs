@@ -331,8 +331,20 @@ pub struct Shape {
     pub non_decreasing: bool,
     /// Largest value a knot may take.
     pub max_value: f64,
+    /// The law changes over decades of its argument (friction against sliding speed:
+    /// a Stribeck drop sits at a few hundredths of the largest speed, a viscous rise
+    /// at its top): the knots after 0 are spaced geometrically, from
+    /// [`Shape::LOG_KNOTS_DECADES`] below the largest value the data visit up to it;
+    /// otherwise they follow the data's distribution.
+    pub log_knots: bool,
     /// The parameters the table replaces (held at their values, not fitted).
     pub replaces: &'static [&'static str],
+}
+
+impl Shape {
+    /// Decades below the largest argument value where the first knot after 0 of a
+    /// [`Shape::log_knots`] table sits.
+    pub const LOG_KNOTS_DECADES: f64 = 2.5;
 }
 
 /// What a sensor-site effect does to a measured channel: the plant simulates the true

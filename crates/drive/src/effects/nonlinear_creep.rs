@@ -63,6 +63,7 @@ impl Effect for NonlinearCreepEffect {
             value_at_zero: Some(1.0),
             non_decreasing: true,
             max_value: 1e6,
+            log_knots: false,
             replaces: &["tension_n", "exponent"],
         })
     }

@@ -51,6 +51,7 @@ impl Effect for NonlinearStiffness {
             value_at_zero: Some(1.0),
             non_decreasing: true,
             max_value: 100.0,
+            log_knots: false,
             replaces: &["stiffening_per_n"],
         })
     }

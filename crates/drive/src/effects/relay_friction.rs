@@ -70,6 +70,7 @@ impl Effect for RelayFrictionEffect {
             value_at_zero: None,
             non_decreasing: false,
             max_value: 0.5,
+            log_knots: false,
             replaces: &["coefficient"],
         })
     }

@@ -21,7 +21,7 @@
 //! * **Band**: the 95% band of each knot's value from the fit's covariance (the sum
 //!   of the rises below it for a non-decreasing law), `1.96` standard errors.
 
-use longreach_drive::effects::Effect;
+use longreach_drive::effects::{Effect, Shape};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -91,8 +91,21 @@ fn quantile(v: &[f64], q: f64) -> f64 {
 /// the quantile `i / K` of `sorted` (the largest value, `top`, last): the knots follow
 /// the data without leaving the stretch below its bulk bare (a law's shape there sets
 /// the strain at every higher tension).
-fn place_knots(sorted: &[f64], k: usize) -> Vec<f64> {
+fn place_knots(sorted: &[f64], k: usize, log_knots: bool) -> Vec<f64> {
     let top = quantile(sorted, 1.0);
+    if log_knots {
+        // 0, then geometric from LOG_KNOTS_DECADES below the top up to it
+        let lo = top * 10f64.powf(-Shape::LOG_KNOTS_DECADES);
+        return std::iter::once(0.0)
+            .chain((0..k).map(|i| {
+                if i + 1 == k {
+                    top
+                } else {
+                    lo * (top / lo).powf(i as f64 / (k - 1).max(1) as f64)
+                }
+            }))
+            .collect();
+    }
     let mut knots: Vec<f64> = (0..=k)
         .map(|i| {
             let a = i as f64 / k as f64;
@@ -152,7 +165,7 @@ pub fn refine_shape(
     let tables: Vec<(Vec<f64>, Vec<f64>)> = KNOT_COUNTS
         .iter()
         .map(|&k| {
-            let knots = place_knots(&samples, k);
+            let knots = place_knots(&samples, k, shape.log_knots);
             let mut y: Vec<f64> = knots
                 .iter()
                 .map(|&x| {
@@ -184,7 +197,24 @@ pub fn refine_shape(
                     .as_ref()
                     .and_then(|sh| sh.table_for(0).ok());
                 match prev {
-                    Some(t) => (&last.model, knots.iter().map(|&x| t.eval(x)).collect()),
+                    // (a value the smaller table left on its lower bound, a knot the
+                    // data barely see, starts from the first table's start instead:
+                    // a log-scale value frozen on its bound stalled the larger fit)
+                    Some(t) => (
+                        &last.model,
+                        knots
+                            .iter()
+                            .zip(y)
+                            .map(|(&x, &y0)| {
+                                let v = t.eval(x);
+                                if v <= shape.max_value * 1e-9 * (1.0 + 1e-6) {
+                                    y0
+                                } else {
+                                    v
+                                }
+                            })
+                            .collect(),
+                    ),
                     None => (&fitted.model, y.clone()),
                 }
             }

@@ -33,7 +33,7 @@ use std::borrow::Cow;
 
 use longreach_arm::scenario::{self, ArmScenario};
 use longreach_arm::{ArmSpec, Command, DrivenArm, DrivenState};
-use longreach_drive::effects::{Applied, DataKind, Effect, LinkBending, Site};
+use longreach_drive::effects::{Applied, Argument, DataKind, Effect, LinkBending, Site};
 use longreach_drive::transmission::PairSpec;
 use longreach_drive::InputSignal;
 
@@ -492,6 +492,51 @@ impl Plant for ArmPlant<'_> {
     /// in the run's order (the motor angles first).
     fn simulate(&self, params: &PlantParams, run: usize) -> Result<Channels, IdentError> {
         self.simulate_posed(params, run, None).map(|(c, _)| c)
+    }
+
+    /// At every sample of the run, for every driven joint: its rate's magnitude
+    /// (`rate_rad_s`), the tension of every span of both its ropes (`tension_n`), or
+    /// the hub load of every relay pulley, the sum of the tensions of the spans either
+    /// side (`hub_load_n`; none on a pair without relay friction, whose rope is one
+    /// span).
+    fn argument_samples(
+        &self,
+        params: &PlantParams,
+        run: usize,
+        arg: Argument,
+    ) -> Result<Vec<f64>, IdentError> {
+        let r = &self.ds.runs[run];
+        let (arm, substeps) = self.arm_for(params, run)?;
+        let take = |st: &DrivenState, out: &mut Vec<f64>| {
+            for (p, pair) in arm.pairs().iter().enumerate() {
+                match arg {
+                    Argument::JointRateRadS => out.push(st.qd_rad_s[pair.spec.joint].abs()),
+                    Argument::TensionN => {
+                        out.extend(arm.span_tensions_n(st, p).iter().flatten());
+                    }
+                    Argument::HubLoadN => {
+                        let spans = arm.span_tensions_n(st, p);
+                        for w in spans.windows(2) {
+                            out.extend([w[0][0] + w[1][0], w[0][1] + w[1][1]]);
+                        }
+                    }
+                }
+            }
+        };
+        let mut st = arm.initial_state();
+        let mut out = Vec::new();
+        take(&st, &mut out);
+        for _ in 1..r.time_s.len() {
+            for _ in 0..substeps {
+                arm.step(&mut st).map_err(|e| IdentError::ArmSimulation {
+                    run: r.name.clone(),
+                    time_s: st.time_s,
+                    message: e.to_string(),
+                })?;
+            }
+            take(&st, &mut out);
+        }
+        Ok(out)
     }
 }
 
