@@ -226,8 +226,10 @@ pub fn refine_shape(
 
         let p = f.model.fit_specs(n_runs).len();
         let b = bic(f.ssr, p, n);
-        // more knots only while the criterion improves
-        let worse = fits.last().is_some_and(|l| b >= l.1);
+        // more knots only while the criterion improves; a larger table that fits worse
+        // than the smaller one (it holds nearly the smaller's law: its fit stopped
+        // short) does not end the search
+        let worse = fits.last().is_some_and(|l| b >= l.1 && f.ssr < l.2.ssr);
         fits.push((knots.len() - 1, b, f));
         if worse {
             break;
