@@ -414,6 +414,29 @@ fn second_difference(x: &[f64], dt_s: f64) -> Vec<f64> {
     out
 }
 
+/// Steps the arm `arm` through run `r` from its initial state, `substeps` steps per
+/// sample, and shows `visit` the state at every sample (the first included).
+fn each_sample(
+    arm: &DrivenArm,
+    r: &ArmRun,
+    substeps: usize,
+    mut visit: impl FnMut(&DrivenState),
+) -> Result<(), IdentError> {
+    let mut st = arm.initial_state();
+    visit(&st);
+    for _ in 1..r.time_s.len() {
+        for _ in 0..substeps {
+            arm.step(&mut st).map_err(|e| IdentError::ArmSimulation {
+                run: r.name.clone(),
+                time_s: st.time_s,
+                message: e.to_string(),
+            })?;
+        }
+        visit(&st);
+    }
+    Ok(())
+}
+
 /// Simulates the arm `arm` on run `r`: the channels of `r` at its sample times (tip
 /// accelerations by second differences of the sampled tip positions). With `poses`,
 /// the generalised coordinates (joints, then the flexible links' modes) of every
@@ -427,24 +450,12 @@ pub(crate) fn simulate_run(
     let n = r.time_s.len();
     let mut out: Vec<Vec<f64>> = r.channels.iter().map(|_| Vec::with_capacity(n)).collect();
     let mut tip: [Vec<f64>; 3] = Default::default();
-    let mut st = arm.initial_state();
-    record(arm, &st, r, &mut tip, &mut out);
-    if let Some(p) = poses.as_deref_mut() {
-        p.push(st.q_rad.clone());
-    }
-    for _ in 1..n {
-        for _ in 0..substeps {
-            arm.step(&mut st).map_err(|e| IdentError::ArmSimulation {
-                run: r.name.clone(),
-                time_s: st.time_s,
-                message: e.to_string(),
-            })?;
-        }
-        record(arm, &st, r, &mut tip, &mut out);
+    each_sample(arm, r, substeps, |st| {
+        record(arm, st, r, &mut tip, &mut out);
         if let Some(p) = poses.as_deref_mut() {
             p.push(st.q_rad.clone());
         }
-    }
+    })?;
     let dt = r.dt_s();
     for (c, o) in r.channels.iter().zip(out.iter_mut()) {
         if let ArmQuantity::TipAcc(a) = c.quantity {
@@ -507,7 +518,8 @@ impl Plant for ArmPlant<'_> {
     ) -> Result<Vec<f64>, IdentError> {
         let r = &self.ds.runs[run];
         let (arm, substeps) = self.arm_for(params, run)?;
-        let take = |st: &DrivenState, out: &mut Vec<f64>| {
+        let mut out = Vec::new();
+        each_sample(&arm, r, substeps, |st| {
             for (p, pair) in arm.pairs().iter().enumerate() {
                 match arg {
                     Argument::JointRateRadS => out.push(st.qd_rad_s[pair.spec.joint].abs()),
@@ -522,20 +534,7 @@ impl Plant for ArmPlant<'_> {
                     }
                 }
             }
-        };
-        let mut st = arm.initial_state();
-        let mut out = Vec::new();
-        take(&st, &mut out);
-        for _ in 1..r.time_s.len() {
-            for _ in 0..substeps {
-                arm.step(&mut st).map_err(|e| IdentError::ArmSimulation {
-                    run: r.name.clone(),
-                    time_s: st.time_s,
-                    message: e.to_string(),
-                })?;
-            }
-            take(&st, &mut out);
-        }
+        })?;
         Ok(out)
     }
 }
