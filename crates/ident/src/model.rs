@@ -216,6 +216,12 @@ pub struct ShapeUse {
 }
 
 impl ShapeUse {
+    /// The lower bound of a table value fitted on a log scale (a law that may fall:
+    /// its values, not its rises, are fitted).
+    pub fn value_lower_bound(shape: &Shape) -> f64 {
+        shape.max_value * 1e-9
+    }
+
     /// The shape-free form of `shape` with `values` at `knots` (every parameter fitted
     /// when `fit`), checked against the shape.
     pub fn new(
@@ -252,7 +258,7 @@ impl ShapeUse {
             params.push(def(
                 format!("{}@{arg}=0", shape.value),
                 values[0],
-                shape.max_value * 1e-9,
+                Self::value_lower_bound(&shape),
                 true,
             ));
         }
@@ -270,7 +276,7 @@ impl ShapeUse {
                 def(
                     format!("{}@{arg}={}", shape.value, knots[i]),
                     values[i],
-                    shape.max_value * 1e-9,
+                    Self::value_lower_bound(&shape),
                     true,
                 )
             });

@@ -160,7 +160,7 @@ pub const PAIR_CANDIDATES: usize = 3;
 /// against an order the coarse step's own error swapped.
 pub const FINALISTS: usize = 3;
 
-/// Fits made on `search` (an arm's coarse twin; the same data at 1 ms), finished on
+/// Fits made on `coarse` (an arm's coarse twin; the same data at 1 ms), finished on
 /// `prep` (the step chosen from the data): every fit scored at `prep`'s step at its
 /// values (one simulation), and the `finalists` best by that score fitted on from
 /// their values there ([`Start::Own`]). Without a coarse twin, the fits as they are.
@@ -173,11 +173,11 @@ pub const FINALISTS: usize = 3;
 /// the chosen step's.
 fn finish(
     prep: &Prepared<'_>,
-    search: &Prepared<'_>,
+    coarse: Option<&Prepared<'_>>,
     fits: Vec<(String, Result<Fitted, IdentError>)>,
     finalists: usize,
 ) -> Vec<(String, Result<Fitted, IdentError>)> {
-    if std::ptr::eq(prep, search) {
+    if coarse.is_none() {
         return fits;
     }
     let mut scored: Vec<(String, Result<Fitted, IdentError>)> = fits
@@ -368,8 +368,8 @@ fn nameable(f: &Fitted) -> bool {
 /// The pair step: the best single candidates (score above [`MIN_SCORE`], at most
 /// [`PAIR_CANDIDATES`]) fitted two at a time, each pair from the start that simulates
 /// closest to the data among its own search of starting values and its two single fits
-/// with the other's effect added at its fitted values, fitted on `search` (an arm's
-/// coarse twin, else `prep`) and scored on `prep`. Returns the pairs as candidates
+/// with the other's effect added at its fitted values, fitted on `coarse` (an arm's
+/// coarse twin) when there is one, else on `prep`, and scored on `prep`. Returns the pairs as candidates
 /// scored against the baseline, best first, with their fits (finished at the chosen
 /// step by [`finish_pairs`] and refined by [`refine_best_pair`] when they matter).
 ///
@@ -379,12 +379,13 @@ fn nameable(f: &Fitted) -> bool {
 /// absence would hold the pair in that basin).
 fn pair_step(
     prep: &Prepared<'_>,
-    search: &Prepared<'_>,
+    coarse: Option<&Prepared<'_>>,
     base_model: &Model,
     judge: &Judge,
     cands: &[(Candidate, Option<Fitted>)],
     parametric: &[(Candidate, Option<Fitted>)],
 ) -> Vec<(Candidate, Option<Fitted>)> {
+    let search = coarse.unwrap_or(prep);
     let tops: Vec<&Fitted> = cands
         .iter()
         .filter(|(c, f)| c.score > MIN_SCORE && f.is_some())
@@ -448,7 +449,7 @@ fn pair_step(
         })
         .collect();
     // (scored at the chosen step; finished there by `finish_pairs` when they matter)
-    let fits = finish(prep, search, fits, 0);
+    let fits = finish(prep, coarse, fits, 0);
     let mut pairs: Vec<(Candidate, Option<Fitted>)> = fits
         .into_iter()
         .filter(|(name, _)| !name.is_empty())
@@ -642,7 +643,7 @@ pub fn diagnose(
             (e.name().to_string(), f)
         })
         .collect();
-    let fits = finish(prep, search, fits, FINALISTS);
+    let fits = finish(prep, coarse.as_ref(), fits, FINALISTS);
     let excess = (base.ssr - ssr_floor).max(0.0);
     let judge = Judge {
         base_ssr: base.ssr,
@@ -683,7 +684,14 @@ pub fn diagnose(
     if !at_floor {
         if let Some((_, Some(f))) = cands.first() {
             if f.nrmse > REFINE_MARGIN * f.noise_floor {
-                pairs = pair_step(prep, search, &base.model, &judge, &cands, &parametric);
+                pairs = pair_step(
+                    prep,
+                    coarse.as_ref(),
+                    &base.model,
+                    &judge,
+                    &cands,
+                    &parametric,
+                );
             }
         }
     }

@@ -247,8 +247,8 @@ fn already_fitted(model: &Model, slot: &crate::model::Slot) -> bool {
 /// The free parameters (indices into the model's fit specs) the starting grid spans:
 /// at most 3, the effect parameters not [`already_fitted`] first in the model's order,
 /// and on a sweep the base's `k1_scale`.
-fn gridded_params(model: &Model, kind: DataKind, n_runs: usize) -> Vec<usize> {
-    let slots = model.free_slots(n_runs);
+/// `slots` are the model's free slots ([`Model::free_slots`]).
+fn gridded_params(model: &Model, slots: &[crate::model::Slot], kind: DataKind) -> Vec<usize> {
     (0..slots.len())
         .filter(|&i| {
             (is_effect(&slots[i]) && !already_fitted(model, &slots[i]))
@@ -335,7 +335,8 @@ fn starting_values(
     let (prep, model) = (cache.prep, cache.model);
     let specs = model.fit_specs(prep.runs.len());
     let mut x0: Vec<f64> = specs.iter().map(|s| s.initial).collect();
-    let gridded = gridded_params(model, prep.kind, prep.runs.len());
+    let slots = model.free_slots(prep.runs.len());
+    let gridded = gridded_params(model, &slots, prep.kind);
     if gridded.is_empty() {
         return Ok(vec![x0]);
     }
@@ -479,7 +480,6 @@ fn starting_values(
         // and the catalog's (a strong effect pulls the baseline's constants far from
         // where the model with the effect has its optimum).
         let law = &model.law;
-        let slots = model.free_slots(prep.runs.len());
         let catalog: Vec<Option<f64>> = specs
             .iter()
             .enumerate()
@@ -833,7 +833,7 @@ mod tests {
     /// (owner effect's name or "base", parameter index) of every gridded parameter.
     fn gridded_names(m: &Model) -> Vec<(String, usize)> {
         let slots: Vec<Slot> = m.free_slots(1);
-        gridded_params(m, DataKind::SineSweep, 1)
+        gridded_params(m, &slots, DataKind::SineSweep)
             .into_iter()
             .map(|i| match slots[i].owner {
                 crate::model::Owner::Effect(e) => {

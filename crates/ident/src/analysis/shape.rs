@@ -198,8 +198,9 @@ pub fn refine_shape(
                     .and_then(|sh| sh.table_for(0).ok());
                 match prev {
                     // (a value the smaller table left on its lower bound, a knot the
-                    // data barely see, starts from the first table's start instead:
-                    // a log-scale value frozen on its bound stalled the larger fit)
+                    // data barely see, starts from the catalog law there instead, as
+                    // the first table does: a log-scale value frozen on its bound
+                    // stalled the larger fit)
                     Some(t) => (
                         &last.model,
                         knots
@@ -207,7 +208,7 @@ pub fn refine_shape(
                             .zip(y)
                             .map(|(&x, &y0)| {
                                 let v = t.eval(x);
-                                if v <= shape.max_value * 1e-9 * (1.0 + 1e-6) {
+                                if v <= ShapeUse::value_lower_bound(&shape) * (1.0 + 1e-6) {
                                     y0
                                 } else {
                                     v

@@ -660,8 +660,7 @@ fn bound_values_reset_to_the_effects_defaults() {
 /// One 2 s move of j5 (0.2 rad at 0.2 rad/s, 0.5 rad/s^2) of longreach5 with its
 /// tension channels, written to `dir` from `truth` (`None`: the baseline).
 fn j5_move(dir: &Path, truth_toml: Option<&str>) -> Dataset {
-    let mut opt =
-        ArmMovesOptions::new(root().join("scenarios/arm_dyneema2_base_trapezoid.toml"), 7);
+    let mut opt = ArmMovesOptions::new(root().join(SCENARIO), 7);
     opt.duration_s = 2.0;
     opt.moves = vec![ArmMove {
         joint: "j5".into(),
@@ -792,8 +791,7 @@ fn arm_diagnose_refines_a_stribeck_joint_friction() {
         hidden.0, hidden.1
     );
     let dir = tempfile::tempdir().unwrap();
-    let mut opt =
-        ArmMovesOptions::new(root().join("scenarios/arm_dyneema2_base_trapezoid.toml"), 5);
+    let mut opt = ArmMovesOptions::new(root().join(SCENARIO), 5);
     opt.duration_s = 4.0;
     opt.moves = vec![
         ArmMove {
