@@ -128,9 +128,10 @@ pub struct SynthArgs {
     /// Leave out the tension channels of sweeps.
     #[arg(long)]
     no_tension: bool,
-    /// Strain of a relaxation test.
-    #[arg(long, default_value_t = 0.015)]
-    strain: f64,
+    /// Strain of a relaxation test; several (`0.01,0.02`) write one run per strain,
+    /// which tells laws of tension apart that one strain cannot.
+    #[arg(long, value_delimiter = ',', default_value = "0.015")]
+    strain: Vec<f64>,
     /// Noise seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -783,7 +784,10 @@ pub fn run_synth(a: &SynthArgs) -> Result<ExitCode> {
         }
         SynthKind::Relaxation => {
             let mut opt = synth::RelaxationOptions::paper(&model.rope, a.seed);
-            opt.strain = a.strain;
+            if let Some((first, more)) = a.strain.split_first() {
+                opt.strain = *first;
+                opt.more_strains = more.to_vec();
+            }
             let d = synth::relaxation(&model, &opt).map_err(message)?;
             d.write(&a.out, &title)?;
         }

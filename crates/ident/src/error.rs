@@ -137,6 +137,14 @@ pub enum IdentError {
         /// Sample interval (s).
         dt_s: f64,
     },
+    /// A synthetic relaxation run's strain is not a finite number > 0.
+    #[error("relaxation run {run}: strain {strain} must be a finite number > 0 (--strain takes strains such as 0.015,0.008)")]
+    RelaxationStrain {
+        /// The run, counted from 1.
+        run: usize,
+        /// The strain given.
+        strain: f64,
+    },
     /// A synthetic cyclic run's strains are not `0 <= lower < upper`.
     #[error("cyclic run {run}: need 0 <= lower strain {lower} < upper strain {upper}")]
     CyclicStrains {

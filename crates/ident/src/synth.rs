@@ -165,8 +165,10 @@ pub struct RelaxationOptions {
     pub rope: String,
     /// Specimen length [m].
     pub length_m: f64,
-    /// Held strain.
+    /// Held strain (the specimen's, the first run's).
     pub strain: f64,
+    /// Further runs, one per strain held (`[[run]] strain`; empty: one run).
+    pub more_strains: Vec<f64>,
     /// Duration [s].
     pub duration_s: f64,
     /// Sample interval [s].
@@ -184,6 +186,7 @@ impl RelaxationOptions {
             rope: rope.into(),
             length_m: 0.1,
             strain: 0.015,
+            more_strains: Vec::new(),
             duration_s: 550.0,
             dt_s: 0.1,
             tension_noise_n: 2.0,
@@ -196,21 +199,37 @@ impl RelaxationOptions {
 pub fn relaxation(model: &Model, opt: &RelaxationOptions) -> Result<RelaxationDataset, IdentError> {
     let n = (opt.duration_s / opt.dt_s).round() as usize + 1;
     let time_s: Vec<f64> = (0..n).map(|i| i as f64 * opt.dt_s).collect();
-    let (law, _) = model.law_for_run(0)?;
-    let f = sim::simulate_relaxation(&law, opt.strain, &time_s).map_err(IdentError::Drive)?;
     let mut g = GaussianNoise::new(opt.tension_noise_n, opt.seed)?;
+    let (law, _) = model.law_for_run(0)?;
+    let runs = std::iter::once(opt.strain)
+        .chain(opt.more_strains.iter().copied())
+        .enumerate()
+        .map(|(i, strain)| {
+            if !(strain.is_finite() && strain > 0.0) {
+                return Err(IdentError::RelaxationStrain { run: i + 1, strain });
+            }
+            let f = sim::simulate_relaxation(&law, strain, &time_s).map_err(IdentError::Drive)?;
+            let name = if i == 0 {
+                "relax".to_string()
+            } else {
+                format!("relax_{}", i + 1)
+            };
+            Ok(RelaxationRun {
+                file: format!("{name}.csv"),
+                name,
+                time_s: time_s.clone(),
+                tension_n: g.noisy(&f),
+                strain: (i > 0).then_some(strain),
+            })
+        })
+        .collect::<Result<Vec<_>, IdentError>>()?;
     Ok(RelaxationDataset {
         specimen: RelaxationSpecimen {
             rope: opt.rope.clone(),
             length_m: opt.length_m,
             strain: opt.strain,
         },
-        runs: vec![RelaxationRun {
-            name: "relax".into(),
-            file: "relax.csv".into(),
-            time_s,
-            tension_n: g.noisy(&f),
-        }],
+        runs,
     })
 }
 

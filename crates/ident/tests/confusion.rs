@@ -182,6 +182,20 @@ fn variants(kind: DataKind) -> &'static [bool] {
     }
 }
 
+/// The strains of the extended study's relaxation shapes beyond the paper's 1.5%:
+/// none (one relaxation), and a second run at 0.8% (`EXTENDED_STRAINS=one|two` for
+/// one of the two).
+fn strain_sets(kind: DataKind) -> &'static [&'static [f64]] {
+    if kind != DataKind::Relaxation {
+        return &[&[]];
+    }
+    match std::env::var("EXTENDED_STRAINS").as_deref() {
+        Ok("one") => &[&[]],
+        Ok("two") => &[&[0.008]],
+        _ => &[&[], &[0.008]],
+    }
+}
+
 #[test]
 #[ignore]
 fn confusion_matrix_full() {
@@ -303,6 +317,7 @@ fn diagnose_truth(
     seed: u64,
     variant: usize,
     tensions: bool,
+    more_strains: &[f64],
     label: &str,
 ) -> Outcome {
     let base = base_model(rope, kind);
@@ -324,7 +339,8 @@ fn diagnose_truth(
                 .unwrap();
         }
         _ => {
-            let opt = RelaxationOptions::paper(rope, seed);
+            let mut opt = RelaxationOptions::paper(rope, seed);
+            opt.more_strains = more_strains.to_vec();
             synth::relaxation(truth, &opt)
                 .unwrap()
                 .write(&path, "case")
@@ -371,6 +387,20 @@ fn diagnose_truth(
     );
     if std::env::var_os("CONFUSION_VERBOSE").is_some() {
         println!("  {}", d.explanation);
+        for r in &d.refinements {
+            println!(
+                "  refined {}: {:?}",
+                r.effect,
+                r.tried
+                    .iter()
+                    .map(|k| (
+                        k.knots,
+                        (k.nrmse / floor * 1000.0).round() / 1000.0,
+                        k.bic.round()
+                    ))
+                    .collect::<Vec<_>>()
+            );
+        }
         for c in d.candidates.iter().chain(&d.pairs) {
             println!(
                 "  {} nrmse {:.5} ({:.2}x) score {:.1} explained {:.3}",
@@ -640,7 +670,10 @@ fn confusion_extended() {
                 {
                     continue;
                 }
-                for &t in variants(kind) {
+                for (&t, more) in variants(kind)
+                    .iter()
+                    .flat_map(|t| strain_sets(kind).iter().map(move |s| (t, s)))
+                {
                     let seed = 3000 + 100 * i as u64 + c as u64;
                     let o = diagnose_truth(
                         kind,
@@ -649,10 +682,16 @@ fn confusion_extended() {
                         seed,
                         i,
                         t,
+                        more,
                         &format!("shape {effect}/{shape}"),
                     );
+                    let strains = if more.is_empty() {
+                        String::new()
+                    } else {
+                        format!(", {} strains", more.len() + 1)
+                    };
                     let row = rows
-                        .entry(format!("{kind:?} {effect} (3 shapes)"))
+                        .entry(format!("{kind:?} {effect} (3 shapes{strains})"))
                         .or_default();
                     row.0 += usize::from(o.top2.first().map(String::as_str) == Some(effect));
                     row.1 += 1;
@@ -680,7 +719,8 @@ fn confusion_extended() {
                 }
                 for &t in variants(kind) {
                     let label = format!("pair {}+{}", pair[0].0, pair[1].0);
-                    let o = diagnose_truth(kind, rope, &truth, 4000 + 10 * i as u64, i, t, &label);
+                    let o =
+                        diagnose_truth(kind, rope, &truth, 4000 + 10 * i as u64, i, t, &[], &label);
                     let both = pair.iter().all(|(n, _)| o.top2.iter().any(|x| x == n));
                     let row = rows
                         .entry(format!("{kind:?} pair {}+{}", pair[0].0, pair[1].0))
@@ -701,8 +741,16 @@ fn confusion_extended() {
                 }
                 for &t in variants(kind) {
                     let truth = base_model(rope, kind);
-                    let o =
-                        diagnose_truth(kind, rope, &truth, 5000 + 10 * i as u64, i, t, "control");
+                    let o = diagnose_truth(
+                        kind,
+                        rope,
+                        &truth,
+                        5000 + 10 * i as u64,
+                        i,
+                        t,
+                        &[],
+                        "control",
+                    );
                     controls.0 += usize::from(o.named.is_empty());
                     controls.1 += 1;
                 }

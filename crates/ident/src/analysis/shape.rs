@@ -31,6 +31,11 @@ use super::prepare::Prepared;
 use crate::error::IdentError;
 use crate::model::{Owner, ShapeUse};
 
+/// A larger table whose fit ends with at least this share of the smaller table's
+/// squared error has stalled on the smaller one's curve and is fitted again from the
+/// catalog law ([`refine_shape`]).
+const STALLED: f64 = 0.999;
+
 /// Numbers of knots after the one at 0 that the refinement tries.
 pub const KNOT_COUNTS: [usize; 3] = [2, 4, 7];
 
@@ -186,7 +191,7 @@ pub fn refine_shape(
         })
         .collect();
     let mut fits: Vec<(usize, f64, Fitted)> = Vec::new();
-    for (knots, y) in &tables {
+    for (knots, y0) in &tables {
         // From the previous number of knots' fit where there is one: its table at the
         // new knots and its other values (the larger table starts where the smaller
         // one ended, not from the catalog law again).
@@ -205,25 +210,36 @@ pub fn refine_shape(
                         &last.model,
                         knots
                             .iter()
-                            .zip(y)
-                            .map(|(&x, &y0)| {
+                            .zip(y0)
+                            .map(|(&x, &c)| {
                                 let v = t.eval(x);
                                 if v <= ShapeUse::value_lower_bound(&shape) * (1.0 + 1e-6) {
-                                    y0
+                                    c
                                 } else {
                                     v
                                 }
                             })
                             .collect(),
                     ),
-                    None => (&fitted.model, y.clone()),
+                    None => (&fitted.model, y0.clone()),
                 }
             }
-            None => (&fitted.model, y.clone()),
+            None => (&fitted.model, y0.clone()),
         };
         let sh = ShapeUse::new(effect, shape, knots, &y, true)?;
         let model = base.with_shape(e, sh);
-        let f = fit_model_from(prep, &model, Start::Own)?;
+        let mut f = fit_model_from(prep, &model, Start::Own)?;
+        // A larger table that ends where the smaller one did (its least squares stayed
+        // on the smaller table's curve, a stationary point it cannot leave: a convex
+        // stiffening hidden in a relaxation, 4 knots at exactly the 2 knots' 1.11x the
+        // floor) is fitted again from the catalog law at its knots, the better kept.
+        if fits.last().is_some_and(|l| f.ssr >= STALLED * l.2.ssr) {
+            let sh = ShapeUse::new(effect, shape, knots, y0, true)?;
+            let again = fit_model_from(prep, &fitted.model.with_shape(e, sh), Start::Own)?;
+            if again.ssr < f.ssr {
+                f = again;
+            }
+        }
 
         let p = f.model.fit_specs(n_runs).len();
         let b = bic(f.ssr, p, n);

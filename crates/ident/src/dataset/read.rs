@@ -59,7 +59,13 @@ struct RawSweepRun {
 struct RawRelaxation {
     specimen: RawRelaxationSpecimen,
     #[serde(default)]
-    run: Vec<RawFileRun>,
+    run: Vec<RawRelaxationRun>,
+}
+
+#[derive(Deserialize)]
+struct RawRelaxationRun {
+    file: Spanned<String>,
+    strain: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize)]
@@ -432,11 +438,16 @@ fn load_relaxation(doc: &TomlDoc, dir: &Path) -> Result<RelaxationDataset, Datas
         check_time(&path, &t.required[0], &t.lines, false)?;
         let tension_n = t.required.pop().unwrap_or_default();
         let time_s = t.required.pop().unwrap_or_default();
+        let strain = match &rr.strain {
+            Some(s) => Some(doc.positive(s, "strain")?),
+            None => None,
+        };
         runs.push(RelaxationRun {
             name: file_stem(&file),
             file,
             time_s,
             tension_n,
+            strain,
         });
     }
     Ok(RelaxationDataset { specimen, runs })

@@ -286,11 +286,13 @@ pub struct RelaxationSpecimen {
     pub rope: String,
     /// Initial length after the pre-stretch process (m).
     pub length_m: f64,
-    /// Strain applied at t = 0 and held (elongation / length) (-).
+    /// Strain applied at t = 0 and held (elongation / length) (-); a run may hold its
+    /// own ([`RelaxationRun::strain`]).
     pub strain: f64,
 }
 
-/// One relaxation run: tension over time at constant strain (paper Sec. III).
+/// One relaxation run: tension over time at constant strain (paper Sec. III), each
+/// run a test of its own from the rope as pre-stretched.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RelaxationRun {
     /// File stem.
@@ -301,6 +303,11 @@ pub struct RelaxationRun {
     pub time_s: Vec<f64>,
     /// Measured tension (N).
     pub tension_n: Vec<f64>,
+    /// The strain this run holds when it is not the specimen's (`[[run]] strain`):
+    /// relaxations at two or more strains tell laws of tension apart that one strain
+    /// cannot (a stiffening head spring sets the tension each strain starts from, a
+    /// tension-dependent creep how fast it falls).
+    pub strain: Option<f64>,
 }
 
 /// A relaxation dataset (`kind = "relaxation"`).
@@ -310,6 +317,16 @@ pub struct RelaxationDataset {
     pub specimen: RelaxationSpecimen,
     /// The runs.
     pub runs: Vec<RelaxationRun>,
+}
+
+impl RelaxationDataset {
+    /// The strain run `run` holds: its own, else the specimen's.
+    pub fn strain_of(&self, run: usize) -> f64 {
+        self.runs
+            .get(run)
+            .and_then(|r| r.strain)
+            .unwrap_or(self.specimen.strain)
+    }
 }
 
 /// The `[specimen]` of a cyclic test.

@@ -47,12 +47,12 @@ struct OutSweepRun<'a> {
 }
 
 #[derive(Serialize)]
-struct OutSpecimenDataset<'a, S: Serialize> {
+struct OutSpecimenDataset<'a, S: Serialize, R: Serialize> {
     format: &'a str,
     kind: &'a str,
     title: &'a str,
     specimen: S,
-    run: Vec<OutFileRun<'a>>,
+    run: Vec<R>,
 }
 
 #[derive(Serialize)]
@@ -71,6 +71,13 @@ struct OutCyclicSpecimen<'a> {
 #[derive(Serialize)]
 struct OutFileRun<'a> {
     file: &'a str,
+}
+
+#[derive(Serialize)]
+struct OutRelaxationRun<'a> {
+    file: &'a str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    strain: Option<f64>,
 }
 
 /// Collects the files of a dataset to write and checks them.
@@ -300,7 +307,10 @@ impl RelaxationDataset {
             run: self
                 .runs
                 .iter()
-                .map(|r| OutFileRun { file: &r.file })
+                .map(|r| OutRelaxationRun {
+                    file: &r.file,
+                    strain: r.strain,
+                })
                 .collect(),
         };
         w.commit(&toml_text(dir, &out)?)

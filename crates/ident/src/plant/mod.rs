@@ -309,7 +309,7 @@ impl Plant for SpecimenPlant<'_> {
         let (name, out) = match self {
             Self::Relaxation(rx) => (
                 &rx.runs[run].name,
-                sim::simulate_relaxation(&params.law, rx.specimen.strain, &rx.runs[run].time_s),
+                sim::simulate_relaxation(&params.law, rx.strain_of(run), &rx.runs[run].time_s),
             ),
             Self::Cyclic(cy) => (
                 &cy.runs[run].name,

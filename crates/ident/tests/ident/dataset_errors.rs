@@ -477,12 +477,14 @@ fn relaxation_and_cyclic_round_trip() {
                 file: "a.csv".into(),
                 time_s: t.clone(),
                 tension_n: t.iter().map(|x| 1000.0 / (1.0 + x)).collect(),
+                strain: None,
             },
             RelaxationRun {
                 name: "b".into(),
                 file: "b.csv".into(),
                 time_s: t.clone(),
                 tension_n: t.iter().map(|x| 900.0 - x).collect(),
+                strain: Some(0.02),
             },
         ],
     };
@@ -490,6 +492,17 @@ fn relaxation_and_cyclic_round_trip() {
     assert_eq!(
         Dataset::load(tmp.path().join("relax")).unwrap().kind,
         DatasetKind::Relaxation(relax)
+    );
+
+    // a run's own strain must be positive, like the specimen's
+    let toml = tmp.path().join("relax").join("dataset.toml");
+    let line = line_of(&toml, "strain = 0.02");
+    edit_line(&toml, line, |_| "strain = -0.02".into());
+    let (e, msg) = load_err(&tmp.path().join("relax"));
+    assert!(matches!(e, DatasetError::InvalidValue { .. }));
+    assert_mentions(
+        &msg,
+        &["dataset.toml", &format!("line {line}"), "strain", "> 0"],
     );
 
     let cyclic = CyclicDataset {

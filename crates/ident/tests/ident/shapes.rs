@@ -204,3 +204,71 @@ fn a_stiffening_of_another_shape_is_refined_to_the_floor() {
     assert_eq!(d2.missing_effect, None, "{}", d2.explanation);
     assert!(base2.nrmse <= 1.5 * floor, "{}", d2.explanation);
 }
+
+/// A relaxation of `truth` (dyneema2, 550 s at 10 Hz, 2 N noise, seed 3013) at 1.5%
+/// and `more_strains`, diagnosed from the baseline: the effects named and the NRMSE
+/// after over the floor.
+fn diagnose_relaxation(truth: &Model, base: &Model, more_strains: &[f64]) -> (Vec<String>, f64) {
+    let mut opt = synth::RelaxationOptions::paper("dyneema2", 3013);
+    opt.more_strains = more_strains.to_vec();
+    let d = synth::relaxation(truth, &opt).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("ds");
+    d.write(&path, "convex stiffening").unwrap();
+    let ds = Dataset::load(&path).unwrap();
+    assert_eq!(
+        ds.kind,
+        DatasetKind::Relaxation(d),
+        "the runs' strains written and read back"
+    );
+    let prep = Prepared::new(&ds).unwrap();
+    let (diag, base_fit, winner) = diagnose(&prep, base).unwrap();
+    println!("{}", diag.explanation);
+    let after = winner.map_or(f64::NAN, |w| w.nrmse / base_fit.noise_floor);
+    (diag.missing_effects, after)
+}
+
+/// A head spring stiffening along a convex law (`1 + (f/900 N)^2`, not the catalog's
+/// `1 + b f`) hidden in relaxations. At one strain a creep law bent to the same decay
+/// fits the curve as well, so nothing but the right effect may be named (the extended
+/// confusion study: 4 false names of `nonlinear_creep` in 6 such datasets before
+/// 2026-11-26 night, 1 after, none here); with a second run at 0.8% the stiffening is
+/// named and its table brings the data to the floor.
+#[test]
+fn relaxations_at_two_strains_tell_a_stiffening_from_a_creep_law() {
+    let (_, base) = relax_base();
+    let effect = effects::find("nonlinear_stiffness").unwrap();
+    let mut truth = base.with_effect(effect);
+    truth.effects[0].params[0].value = 2e-3;
+    let knots: Vec<f64> = (0..12).map(|i| 1500.0 * i as f64 / 11.0).collect();
+    let values: Vec<f64> = knots.iter().map(|f| 1.0 + (f / 900.0).powi(2)).collect();
+    let sh = ShapeUse::new(effect, effect.shape().unwrap(), &knots, &values, false).unwrap();
+    let truth = truth.with_shape(0, sh);
+
+    let (named, _) = diagnose_relaxation(&truth, &base, &[]);
+    assert!(
+        named.iter().all(|n| n == "nonlinear_stiffness"),
+        "one strain: a false name {named:?}"
+    );
+    let (named, after) = diagnose_relaxation(&truth, &base, &[0.008]);
+    assert_eq!(named, ["nonlinear_stiffness"], "two strains");
+    assert!(
+        after <= REFINE_MARGIN,
+        "two strains: after {after:.3}x the floor"
+    );
+}
+
+#[test]
+fn a_synthetic_relaxation_refuses_a_strain_that_is_not_positive() {
+    let (_, base) = relax_base();
+    for bad in [0.0, -0.01, f64::NAN] {
+        let mut opt = synth::RelaxationOptions::paper("dyneema2", 1);
+        opt.more_strains = vec![0.01, bad];
+        let err = synth::relaxation(&base, &opt).expect_err("a bad strain must be refused");
+        let msg = err.to_string();
+        assert!(
+            msg.contains("relaxation run 3") && msg.contains("> 0"),
+            "{msg}"
+        );
+    }
+}
