@@ -669,6 +669,34 @@ impl Model {
         m
     }
 
+    /// The fit flags of every effect's table values, effect by effect (empty for an
+    /// effect without a table).
+    pub fn shape_fit_flags(&self) -> Vec<Vec<bool>> {
+        self.effects
+            .iter()
+            .map(|u| {
+                u.shape
+                    .as_ref()
+                    .map(|s| s.params.iter().map(|p| p.fit).collect())
+                    .unwrap_or_default()
+            })
+            .collect()
+    }
+
+    /// The model with the fit flags of its first effects' table values set to `flags`
+    /// (as [`Self::shape_fit_flags`] gives them); effects beyond `flags` unchanged.
+    pub fn with_shape_fit_flags(&self, flags: &[Vec<bool>]) -> Model {
+        let mut m = self.clone();
+        for (u, f) in m.effects.iter_mut().zip(flags) {
+            if let Some(s) = u.shape.as_mut() {
+                for (p, &fit) in s.params.iter_mut().zip(f) {
+                    p.fit = fit;
+                }
+            }
+        }
+        m
+    }
+
     /// True when the model already holds `effect` (in its list or in its law).
     pub fn has_effect(&self, effect: &dyn Effect) -> bool {
         self.effects.iter().any(|u| effects::same(u.effect, effect))

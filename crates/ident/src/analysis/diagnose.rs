@@ -176,18 +176,36 @@ pub const FINALISTS: usize = 3;
 /// a fit's values by a fraction of their scatter, which the finish at the chosen step
 /// takes back; every number a diagnosis reports and decides on (NRMSE, SSR, score) is
 /// the chosen step's.
+///
+/// `release`: the candidates were fitted with the model's tables held (their values
+/// not fitted, [`Model::with_shape_fit_flags`]); every fit gets these flags back (its
+/// score then counts the table's values as the baseline's do) and the finalists are
+/// fitted on with the tables free.
 fn finish(
     prep: &Prepared<'_>,
     coarse: Option<&Prepared<'_>>,
     fits: Vec<(String, Result<Fitted, IdentError>)>,
     finalists: usize,
+    release: Option<&[Vec<bool>]>,
 ) -> Vec<(String, Result<Fitted, IdentError>)> {
-    if coarse.is_none() {
+    if coarse.is_none() && release.is_none() {
         return fits;
     }
     let mut scored: Vec<(String, Result<Fitted, IdentError>)> = fits
         .into_par_iter()
-        .map(|(name, r)| (name, r.and_then(|f| rescored(prep, f))))
+        .map(|(name, r)| {
+            let r = r.map(|f| match release {
+                Some(flags) => Fitted {
+                    model: f.model.with_shape_fit_flags(flags),
+                    ..f
+                },
+                None => f,
+            });
+            match coarse {
+                Some(_) => (name, r.and_then(|f| rescored(prep, f))),
+                None => (name, r),
+            }
+        })
         .collect();
     let mut order: Vec<usize> = (0..scored.len())
         .filter(|&i| scored[i].1.as_ref().is_ok_and(|f| f.fit.is_some()))
@@ -553,7 +571,7 @@ fn pair_step(
         })
         .collect();
     // (scored at the chosen step; finished there by `finish_pairs` when they matter)
-    let fits = finish(prep, coarse, fits, 0);
+    let fits = finish(prep, coarse, fits, 0, None);
     let mut pairs: Vec<(Candidate, Option<Fitted>)> = fits
         .into_iter()
         .filter(|(name, _)| !name.is_empty())
@@ -735,10 +753,23 @@ pub fn diagnose(
     // At the noise floor no candidate can be decisive: screen them (starting values,
     // one simulation each) instead of fitting them in the time domain.
     let at_floor = base.nrmse <= FLOOR_MARGIN * base.noise_floor;
+    // A model holding tables (a second pass on a written model) has its candidates
+    // searched with the tables' values held at the baseline's fit, and the finalists
+    // fitted on with them free (`finish`): every value of a 7-knot table free in every
+    // candidate's search took the second pass on an arm's written joint-friction
+    // table 200 s.
+    let flags = base.model.shape_fit_flags();
+    let release = flags.iter().flatten().any(|&f| f) && !at_floor;
+    let held_flags: Vec<Vec<bool>> = flags.iter().map(|f| vec![false; f.len()]).collect();
+    let searched = if release {
+        base.model.with_shape_fit_flags(&held_flags)
+    } else {
+        base.model.clone()
+    };
     let fits: Vec<(String, Result<Fitted, IdentError>)> = effects
         .par_iter()
         .map(|e| {
-            let m = base.model.with_effect(*e);
+            let m = searched.with_effect(*e);
             let f = if at_floor {
                 screen_model(search, &m)
             } else {
@@ -747,7 +778,13 @@ pub fn diagnose(
             (e.name().to_string(), f)
         })
         .collect();
-    let fits = finish(prep, coarse.as_ref(), fits, FINALISTS);
+    let fits = finish(
+        prep,
+        coarse.as_ref(),
+        fits,
+        FINALISTS,
+        release.then_some(flags.as_slice()),
+    );
     let excess = (base.ssr - ssr_floor).max(0.0);
     let judge = Judge {
         base_ssr: base.ssr,
@@ -1168,6 +1205,20 @@ fn explain(
     s
 }
 
+/// `x` to three significant digits (a knot: 0.0153 rad/s, 424 N), without an
+/// exponent between 1e-3 and 1e6.
+fn significant(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let digits = 2 - x.abs().log10().floor() as i32;
+    if (1e-3..1e6).contains(&x.abs()) {
+        format!("{x:.*}", digits.max(0) as usize)
+    } else {
+        format!("{x:.2e}")
+    }
+}
+
 /// One sentence on a shape-free refinement.
 fn describe_refinement(r: &ShapeRefinement) -> String {
     let k = r.knots.len().saturating_sub(1);
@@ -1177,7 +1228,7 @@ fn describe_refinement(r: &ShapeRefinement) -> String {
         .zip(&r.values)
         .zip(&r.catalog)
         .skip(1)
-        .map(|((x, y), c)| format!("{y:.3} at {x:.0} (catalog law {c:.3})"))
+        .map(|((x, y), c)| format!("{y:.3} at {} (catalog law {c:.3})", significant(*x)))
         .collect();
     if r.kept {
         format!(
@@ -1196,5 +1247,19 @@ fn describe_refinement(r: &ShapeRefinement) -> String {
             "The law of {} refined as a table of {} over {} does not fit better than its catalog law (NRMSE {:.4} against {:.4}, BIC score {:.1}): its formula is not what misses the data. ",
             r.effect, r.value, r.argument, r.nrmse, r.nrmse_parametric, r.score
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::significant;
+
+    #[test]
+    fn knots_are_written_to_three_significant_digits() {
+        assert_eq!(significant(0.015_34), "0.0153");
+        assert_eq!(significant(424.4), "424");
+        assert_eq!(significant(1.234_56), "1.23");
+        assert_eq!(significant(0.0), "0");
+        assert_eq!(significant(2.5e-5), "2.50e-5");
     }
 }

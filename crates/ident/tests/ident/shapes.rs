@@ -272,3 +272,63 @@ fn a_synthetic_relaxation_refuses_a_strain_that_is_not_positive() {
         );
     }
 }
+
+/// A second pass on a model that holds a table: the candidates are searched with the
+/// table's values held and the finalists fitted on with them free. A relaxation at two
+/// strains holds a stiffening table and a second retardation time; the model holds the
+/// table (its values free, started 5% off): `extra_retardation` is named, and the
+/// winner's table is fitted again (its values move back towards the truth).
+#[test]
+fn a_second_pass_on_a_table_model_names_the_next_effect_with_the_table_free() {
+    let (_, base) = relax_base();
+    let effect = effects::find("nonlinear_stiffness").unwrap();
+    let knots = [0.0, 300.0, 600.0, 900.0, 1200.0, 1500.0];
+    let law = |f: f64| 1.0 + (f / 900.0).powi(2);
+    let values: Vec<f64> = knots.iter().map(|&f| law(f)).collect();
+    let with_table = |v: &[f64], fit: bool| {
+        let sh = ShapeUse::new(effect, effect.shape().unwrap(), &knots, v, fit).unwrap();
+        base.with_effect(effect).with_shape(0, sh)
+    };
+    let mut truth =
+        with_table(&values, false).with_effect(effects::find("extra_retardation").unwrap());
+    truth.effects[1].params[0].value = 1.5e5;
+    truth.effects[1].params[1].value = 3e6;
+    let mut opt = synth::RelaxationOptions::paper("dyneema2", 41);
+    opt.more_strains = vec![0.008];
+    let d = synth::relaxation(&truth, &opt).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("ds");
+    d.write(&path, "table and retardation").unwrap();
+    let ds = Dataset::load(&path).unwrap();
+    let prep = Prepared::new(&ds).unwrap();
+    let off: Vec<f64> = values.iter().map(|v| 1.0 + 1.05 * (v - 1.0)).collect();
+    let model = with_table(&off, true);
+    assert!(model.shape_fit_flags()[0].iter().all(|&f| f));
+    let (diag, base_fit, winner) = diagnose(&prep, &model).unwrap();
+    println!("{}", diag.explanation);
+    assert_eq!(
+        diag.missing_effects,
+        ["extra_retardation"],
+        "{}",
+        diag.explanation
+    );
+    let w = winner.unwrap();
+    assert!(
+        w.nrmse <= REFINE_MARGIN * base_fit.noise_floor,
+        "{}",
+        w.nrmse
+    );
+    // the winner's table is free again and was fitted with the retardation beside it
+    assert_eq!(w.model.shape_fit_flags()[0], model.shape_fit_flags()[0]);
+    let fitted = w.model.effects[0].shape.as_ref().unwrap().values_for(0);
+    let err = |v: &[f64]| {
+        v.iter()
+            .zip(&values)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max)
+    };
+    assert!(
+        err(&fitted) < err(&off),
+        "the table did not move towards the truth: {fitted:?} from {off:?}"
+    );
+}
