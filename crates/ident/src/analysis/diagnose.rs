@@ -350,9 +350,10 @@ fn contender(c: &Candidate, f: &Fitted) -> bool {
 /// parameter). A relaxation at one strain holding a stiffening of another shape than
 /// the catalog's was fitted to 1.00-1.10x the floor by the catalog's tension-dependent
 /// *creep* and named so, while the right effect's formula stayed above the floor and
-/// was never refined (docs/models.md, the extended confusion study). Refined
-/// contenders that fit equally well are told apart by their parameter counts and
-/// score gap as any two candidates: the data decide, or nothing is named.
+/// was never refined (docs/models.md, the extended confusion study). The refined
+/// contenders are then judged as any two candidates (score gap, parameter counts), and
+/// a first that reaches the floor only with its table is not named when the second
+/// reaches it too ([`decisive_first`]).
 fn refine_contenders(
     prep: &Prepared<'_>,
     judge: &Judge,
