@@ -372,8 +372,10 @@ fn refine_contenders(
         return;
     }
     let top = cands.len().min(CONTENDERS);
+    // (a law refined already in this diagnosis and not kept is not refined again)
     let picked: Vec<usize> = (0..top)
         .filter(|&i| matches!(&cands[i], (c, Some(f)) if contender(c, f)))
+        .filter(|&i| !refinements.iter().any(|r| r.effect == cands[i].0.effect))
         .collect();
     if !picked.iter().any(|&i| i > 0) {
         return;

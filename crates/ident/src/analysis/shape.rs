@@ -10,7 +10,9 @@
 //!   above).
 //! * **Start**: the parametric law's values at the knots ([`Effect::curve`]), so the
 //!   table starts where the catalog's formula ended; each larger number of knots starts
-//!   from the previous table's fit (its values at the new knots, its other parameters).
+//!   from the previous table's fit (its values at the new knots, its other parameters),
+//!   and again from the catalog law when that fit stalls on the smaller table's curve
+//!   (`STALLED`).
 //! * **Fit**: every free parameter of the model together with the table's values, by
 //!   least squares on the simulation from the parametric fit's values
 //!   ([`fit_model_from`], [`Start::Own`]); a law that never falls is fitted through its
@@ -234,10 +236,12 @@ pub fn refine_shape(
         // stiffening hidden in a relaxation, 4 knots at exactly the 2 knots' 1.11x the
         // floor) is fitted again from the catalog law at its knots, the better kept.
         if fits.last().is_some_and(|l| f.ssr >= STALLED * l.2.ssr) {
+            // (a second start that fails leaves the first's fit)
             let sh = ShapeUse::new(effect, shape, knots, y0, true)?;
-            let again = fit_model_from(prep, &fitted.model.with_shape(e, sh), Start::Own)?;
-            if again.ssr < f.ssr {
-                f = again;
+            if let Ok(again) = fit_model_from(prep, &fitted.model.with_shape(e, sh), Start::Own) {
+                if again.ssr < f.ssr {
+                    f = again;
+                }
             }
         }
 
