@@ -457,14 +457,12 @@ fn decisive_first(
         let gap = cands
             .get(1)
             .map_or(f64::INFINITY, |(second, _)| best.score - second.score);
-        let best_ssr = fit.as_ref().map_or(f64::INFINITY, |f| f.ssr);
-        let reaches_floor = best_ssr <= FLOOR_MARGIN * FLOOR_MARGIN * ssr_floor;
-        let second_left = cands
-            .get(1)
-            .and_then(|(_, f)| f.as_ref())
-            .map_or(base_ssr, |f| f.ssr.min(base_ssr));
-        let separated = second_left - ssr_floor >= 2.0 * (best_ssr - ssr_floor).max(0.0);
         let at_floor = |ssr: f64| ssr <= FLOOR_MARGIN * FLOOR_MARGIN * ssr_floor;
+        let best_ssr = fit.as_ref().map_or(f64::INFINITY, |f| f.ssr);
+        let reaches_floor = at_floor(best_ssr);
+        let second = cands.get(1).and_then(|(_, f)| f.as_ref());
+        let second_left = second.map_or(base_ssr, |f| f.ssr.min(base_ssr));
+        let separated = second_left - ssr_floor >= 2.0 * (best_ssr - ssr_floor).max(0.0);
         let shaped = |f: Option<&Fitted>| {
             f.is_some_and(|f| {
                 f.model
@@ -474,7 +472,6 @@ fn decisive_first(
                     .any(|u| u.shape.is_some())
             })
         };
-        let second = cands.get(1).and_then(|(_, f)| f.as_ref());
         let confounded =
             reaches_floor && shaped(fit.as_ref()) && second.is_some_and(|s| at_floor(s.ssr));
         best.explained >= MIN_EXPLAINED
@@ -555,9 +552,13 @@ fn pair_step(
                     .map_or(f64::INFINITY, |sims| search.ssr(&sims))
             })
             .collect();
-        let first_ssr = search
-            .simulate(&first.model)
-            .map_or(f64::INFINITY, |sims| search.ssr(&sims));
+        // (the single's own SSR is `prep`'s: simulated again only on a coarse twin)
+        let first_ssr = match coarse {
+            None => first.ssr,
+            Some(c) => c
+                .simulate(&first.model)
+                .map_or(f64::INFINITY, |sims| c.ssr(&sims)),
+        };
         if let Some(k) = (0..others.len())
             .filter(|&k| screened[k] < first_ssr)
             .min_by(|&a, &b| screened[a].total_cmp(&screened[b]).then(a.cmp(&b)))
