@@ -434,6 +434,22 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
         },
         pl.and_then(|p| p.offset_m).unwrap_or([0.0; 3]),
     );
+    // The servos' references know the `[payload]`, not what effects add to it (an
+    // unknown payload: `payload_mass`): their arm is the one before the effects'.
+    let stated_kg = doc.payload.as_ref().map_or(0.0, |p| p.mass_kg);
+    let mut controller = None;
+    if payload.mass_kg != stated_kg {
+        let mut c = spec.clone();
+        if doc.payload.is_some() {
+            let (link, offset) = (&payload_at.0, nalgebra::Vector3::from(payload_at.1));
+            // (a bad link is reported for the arm's own payload below)
+            if c.add_payload(link, stated_kg, offset).is_ok() {
+                controller = Some(c);
+            }
+        } else {
+            controller = Some(c);
+        }
+    }
     if doc.payload.is_some() || payload.mass_kg != 0.0 {
         let (link, offset) = (&payload_at.0, nalgebra::Vector3::from(payload_at.1));
         spec.add_payload(link, payload.mass_kg, offset)
@@ -767,13 +783,18 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
         s.dt_s,
     )
     .map_err(|e| ferr("transmission", e.to_string(), "correct the named field"))?;
-    let arm = arm.with_flexible_links(flex.clone()).map_err(|e| {
+    let mut arm = arm.with_flexible_links(flex.clone()).map_err(|e| {
         ferr(
             "flex",
             e.to_string(),
             "correct the named link's [[flex]] entry",
         )
     })?;
+    if let Some(c) = controller {
+        arm = arm
+            .with_controller_spec(c)
+            .map_err(|e| ferr("effect", e.to_string(), "correct the named field"))?;
+    }
     Ok(ArmScenario {
         arm,
         sim: doc.sim,

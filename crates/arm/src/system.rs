@@ -63,6 +63,22 @@ pub struct DrivenArm {
     /// The links' dynamics when some bend ([`crate::flex`]); `None`: every link rigid
     /// (the rigid code path, unchanged).
     flex: Option<FlexDynamics>,
+    /// The flexible links `flex` was built from (for [`Controller::flex`]).
+    flex_links: Vec<FlexLinkSpec>,
+    /// The arm the servos' references are computed for, when it is not the arm
+    /// simulated ([`Self::with_controller_spec`]); `None`: the servos know the arm.
+    controller: Option<Box<Controller>>,
+}
+
+/// The arm as the servos' references see it ([`DrivenArm::with_controller_spec`]): a
+/// payload the controller does not know (the `payload_mass` effect) loads the arm
+/// simulated, not the gravity feed-forward and static stretch of the references.
+#[derive(Debug, Clone)]
+struct Controller {
+    spec: ArmSpec,
+    dynamics: FastDynamics,
+    /// Its flexible links' dynamics, when the arm's links bend.
+    flex: Option<FlexDynamics>,
 }
 
 /// Mutable state of a [`DrivenArm`]: the transmission core's state with the arm's own
@@ -299,6 +315,8 @@ impl DrivenArm {
             ff_map,
             driven,
             flex: None,
+            flex_links: Vec::new(),
+            controller: None,
         })
     }
 
@@ -307,18 +325,79 @@ impl DrivenArm {
     /// (bitwise the rigid arm's results).
     pub fn with_flexible_links(mut self, links: Vec<FlexLinkSpec>) -> Result<Self, ArmError> {
         if links.is_empty() {
+            self.flex_links.clear();
+            if let Some(c) = &mut self.controller {
+                c.flex = None;
+            }
             if self.flex.take().is_some() {
                 let n = self.spec.ndofs();
                 return self.recompile(n);
             }
             return Ok(self);
         }
-        let mut fd = FlexDynamics::new(&self.spec, &links)
-            .map_err(|e| bad(&format!("flex (link {})", e.link), e.reason))?;
-        fd.set_gravity(self.spec.gravity_m_s2);
+        let fd = self.flex_dynamics(&self.spec, &links)?;
         let nq = fd.ncoords();
         self.flex = Some(fd);
+        if let Some(mut c) = self.controller.take() {
+            c.flex = Some(self.flex_dynamics(&c.spec, &links)?);
+            self.controller = Some(c);
+        }
+        self.flex_links = links;
         self.recompile(nq)
+    }
+
+    /// The dynamics of `spec` with the flexible links `links`, under the arm's gravity.
+    fn flex_dynamics(
+        &self,
+        spec: &ArmSpec,
+        links: &[FlexLinkSpec],
+    ) -> Result<FlexDynamics, ArmError> {
+        let mut fd = FlexDynamics::new(spec, links)
+            .map_err(|e| bad(&format!("flex (link {})", e.link), e.reason))?;
+        fd.set_gravity(self.spec.gravity_m_s2);
+        Ok(fd)
+    }
+
+    /// The same arm with its servos' references (gravity feed-forward, static stretch
+    /// `u_static`, motor reference angles) computed for the arm `spec` instead of the
+    /// arm simulated: the controller's belief, e.g. the payload it was told, while the
+    /// arm carries another (the `payload_mass` effect: a payload unknown to the
+    /// controller). `spec` must have the arm's joints (the same URDF; masses may
+    /// differ). The arm then starts at rest where the real statics put it with the
+    /// servos holding the first command ([`Self::initial_state`]): a heavier payload
+    /// sags. Call it after [`Self::with_flexible_links`] or before, either way.
+    pub fn with_controller_spec(mut self, spec: ArmSpec) -> Result<Self, ArmError> {
+        spec.validate()?;
+        let same_joints = spec.ndofs() == self.spec.ndofs()
+            && spec
+                .joints
+                .iter()
+                .zip(&self.spec.joints)
+                .all(|(a, b)| a.name == b.name);
+        if !same_joints {
+            return Err(bad(
+                "controller",
+                "the controller's arm must have the simulated arm's joints (the same URDF)".into(),
+            ));
+        }
+        let flex = match self.flex {
+            Some(_) => Some(self.flex_dynamics(&spec, &self.flex_links)?),
+            None => None,
+        };
+        let mut dynamics = FastDynamics::new(&spec);
+        dynamics.set_gravity(self.spec.gravity_m_s2);
+        self.controller = Some(Box::new(Controller {
+            spec,
+            dynamics,
+            flex,
+        }));
+        Ok(self)
+    }
+
+    /// The arm the servos' references are computed for when it is not the arm
+    /// simulated ([`Self::with_controller_spec`]); `None`: the servos know the arm.
+    pub fn controller_spec(&self) -> Option<&ArmSpec> {
+        self.controller.as_ref().map(|c| &c.spec)
     }
 
     /// The drivetrain again, for `nq` coordinates.
@@ -424,6 +503,13 @@ impl DrivenArm {
         self.dynamics.set_gravity(g);
         if let Some(f) = &mut self.flex {
             f.set_gravity(g);
+        }
+        if let Some(c) = &mut self.controller {
+            c.dynamics.set_gravity(g);
+            if let Some(f) = &mut c.flex {
+                f.set_gravity(g);
+            }
+            c.spec.gravity_m_s2 = g;
         }
         self.spec.gravity_m_s2 = g;
         self
@@ -535,6 +621,9 @@ impl DrivenArm {
     /// The arm at rest at its initial angles, held by the ropes against gravity, motors
     /// at the angles that hold it.
     pub fn initial_state(&self) -> DrivenState {
+        if let Some(c) = &self.controller {
+            return self.sagged_initial_state(c);
+        }
         let Some(f) = &self.flex else {
             let statics = self.static_pairs(&self.initial_q_rad);
             return self
@@ -556,6 +645,161 @@ impl DrivenArm {
         st.joint_scratch.sag_q.copy_from_slice(&q);
         st.q_ref_rad[n..].fill(0.0);
         st
+    }
+
+    /// The arm at rest where the real statics put it, when the servos' references were
+    /// computed for another arm ([`Self::with_controller_spec`]). Each servo holds the
+    /// reference the controller computes for the initial pose: at rest its torque
+    /// `kp (th_ref - th) + ff` (ff the controller's feed-forward, 0 without one) equals
+    /// the ropes' load `r_m phi`, so the motor gives way by `(ff - r_m phi) / kp`; the
+    /// ropes carry the real gravity load `R^T phi = g(q)` at the stretch `u_static(phi)`,
+    /// and the joints sit where `R q = r_m th - u` puts them (a payload the controller
+    /// does not know sags the arm, and a distal joint whose rope runs over a sagging
+    /// proximal joint's relay turns by the relay's wrap). The driven joints' angles
+    /// solve `q = S(q)` ([`Self::sag_map`]) by Newton's method (finite-difference
+    /// Jacobian, step halved until the residual falls), to 1e-13 rad.
+    fn sagged_initial_state(&self, c: &Controller) -> DrivenState {
+        let n = self.spec.ndofs();
+        let np = self.drive.pairs.len();
+        let mut q = self.padded(&self.initial_q_rad);
+        let mut g = vec![0.0; n];
+        // The controller's references at the initial pose: motor angle, feed-forward.
+        match &c.flex {
+            Some(f) => {
+                let mut qc = q.clone();
+                let mut tau = vec![0.0; qc.len()];
+                self.sagged_gravity(f, &mut qc, &mut f.make_kin(), &mut tau, &mut g);
+            }
+            None => {
+                let mut kin = c.dynamics.make_kin();
+                let zero = vec![0.0; n];
+                c.dynamics.kinematics(&self.initial_q_rad, &mut kin);
+                c.dynamics.rnea(&mut kin, &zero, &zero, &mut g);
+            }
+        }
+        let refs: Vec<(f64, f64)> = (0..np)
+            .map(|p| {
+                let pair = &self.drive.pairs[p];
+                let sp = self.static_pair(p, &g);
+                let rq: f64 = pair
+                    .row
+                    .iter()
+                    .zip(&self.initial_q_rad)
+                    .map(|(a, b)| a * b)
+                    .sum();
+                let r_m = pair.spec.motor_radius_m;
+                ((rq + sp.u_m) / r_m, r_m * sp.phi_n)
+            })
+            .collect();
+        // F(q) = q - S(q) on the driven joints, and its largest entry.
+        let residual = |q: &mut Vec<f64>| -> (Vec<f64>, f64) {
+            let (mapped, _) = self.sag_map(&refs, q);
+            let f: Vec<f64> = (0..np).map(|a| q[self.driven[a]] - mapped[a]).collect();
+            let worst = f.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            (f, if worst.is_nan() { f64::INFINITY } else { worst })
+        };
+        let (mut f, mut worst) = residual(&mut q);
+        for _ in 0..50 {
+            if worst <= 1e-13 {
+                break;
+            }
+            let h = 1e-7;
+            let mut jac = DMatrix::<f64>::identity(np, np);
+            for b in 0..np {
+                let mut qh = q.clone();
+                qh[self.driven[b]] += h;
+                let (fh, _) = residual(&mut qh);
+                for a in 0..np {
+                    jac[(a, b)] = (fh[a] - f[a]) / h;
+                }
+            }
+            let Some(step) = jac.lu().solve(&nalgebra::DVector::from_vec(f.clone())) else {
+                break;
+            };
+            let mut lambda = 1.0;
+            let mut accepted = false;
+            while lambda >= 1e-4 {
+                let mut qt = q.clone();
+                for a in 0..np {
+                    qt[self.driven[a]] -= lambda * step[a];
+                }
+                let (ft, wt) = residual(&mut qt);
+                if wt < worst {
+                    (q, f, worst, accepted) = (qt, ft, wt, true);
+                    break;
+                }
+                lambda *= 0.5;
+            }
+            if !accepted {
+                break;
+            }
+        }
+        let (_, statics) = self.sag_map(&refs, &mut q);
+        let mut st = self.drive.rest_state(&q, &statics, self.make_scratch());
+        for (p, &(th_ref, _)) in refs.iter().enumerate() {
+            st.motor_ref_rad[p] = th_ref;
+        }
+        st.q_ref_rad[..n].copy_from_slice(&self.initial_q_rad);
+        if self.flex.is_some() {
+            st.joint_scratch.sag_q.copy_from_slice(&q);
+            st.q_ref_rad[n..].fill(0.0);
+        }
+        st
+    }
+
+    /// One pass of the sagged statics ([`Self::sagged_initial_state`]) from the
+    /// coordinates `q` (a flexible arm's modal coordinates set to the links' bending
+    /// there): the real gravity at `q`, each pair's statics under it, each motor's
+    /// angle where its servo balances that load against the reference `refs[p]` =
+    /// (motor reference, feed-forward), and the driven joints' angles `R q = r_m th - u`
+    /// gives (returned, in pair order, with the statics).
+    fn sag_map(&self, refs: &[(f64, f64)], q: &mut [f64]) -> (Vec<f64>, Vec<StaticPair>) {
+        let n = self.spec.ndofs();
+        let np = self.drive.pairs.len();
+        let mut g = vec![0.0; n];
+        match &self.flex {
+            Some(f) => {
+                let mut tau = vec![0.0; q.len()];
+                self.sagged_gravity(f, q, &mut f.make_kin(), &mut tau, &mut g);
+            }
+            None => self.gravity_into(&q[..n], &mut self.dynamics.make_kin(), &mut g),
+        }
+        let statics: Vec<StaticPair> = (0..np).map(|p| self.static_pair(p, &g)).collect();
+        let rhs: Vec<f64> = self
+            .drive
+            .pairs
+            .iter()
+            .enumerate()
+            .map(|(p, pair)| {
+                let r_m = pair.spec.motor_radius_m;
+                let (th_ref, ff) = refs[p];
+                let th = match pair.spec.motor.mode {
+                    longreach_drive::transmission::MotorMode::Servo {
+                        kp_n_m_per_rad,
+                        gravity_feedforward,
+                        ..
+                    } => {
+                        let ff = if gravity_feedforward { ff } else { 0.0 };
+                        th_ref + (ff - r_m * statics[p].phi_n) / kp_n_m_per_rad
+                    }
+                    _ => th_ref,
+                };
+                // the joints no pair drives keep their angles
+                let undriven: f64 = pair
+                    .row
+                    .iter()
+                    .enumerate()
+                    .filter(|(k, _)| !self.driven.contains(k))
+                    .map(|(k, a)| a * q[k])
+                    .sum();
+                r_m * th - statics[p].u_m - undriven
+            })
+            .collect();
+        // R_d q_d = rhs, with (R_d^-1)[a][b] = ff_map[b np + a] (ff_map: (R_d^T)^-1)
+        let mapped = (0..np)
+            .map(|a| (0..np).map(|b| self.ff_map[b * np + a] * rhs[b]).sum())
+            .collect();
+        (mapped, statics)
     }
 
     /// `q` (joint angles, or every coordinate) with the modal coordinates, zero when
@@ -699,16 +943,20 @@ impl DrivenArm {
         let sc = &mut st.joint_scratch;
         // The references only change while a command moves: reuse them otherwise.
         let same_ref = sc.last_qref[..] == st.q_ref_rad[..n];
+        // (the controller's arm when it is not the one simulated)
+        let (dynamics, flex) = match &self.controller {
+            Some(c) => (&c.dynamics, c.flex.as_ref()),
+            None => (&self.dynamics, self.flex.as_ref()),
+        };
         if !same_ref && !self.drive.pairs.is_empty() {
-            if let Some(f) = &self.flex {
+            if let Some(f) = flex {
                 // Gravity of the arm bent under it at the references.
                 sc.sag_q[..n].copy_from_slice(&st.q_ref_rad[..n]);
                 f.sag(&mut sc.fkin, &mut sc.sag_q, &sc.fzero, &mut sc.ftau);
                 sc.g.copy_from_slice(&sc.ftau[..n]);
             } else {
-                self.dynamics.kinematics(&st.q_ref_rad, &mut sc.kin);
-                self.dynamics
-                    .rnea(&mut sc.kin, &sc.zero, &sc.zero, &mut sc.g);
+                dynamics.kinematics(&st.q_ref_rad, &mut sc.kin);
+                dynamics.rnea(&mut sc.kin, &sc.zero, &sc.zero, &mut sc.g);
             }
             sc.last_qref.copy_from_slice(&st.q_ref_rad[..n]);
         }

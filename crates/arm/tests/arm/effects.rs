@@ -311,18 +311,74 @@ fn payload_mass_at_the_tip_loads_the_ropes_by_m_g_l_and_stretches_them_by_phi_ov
     );
     let dphi = sw.phi_n - s0.phi_n;
     let expected_phi = m * STANDARD_GRAVITY_M_S2 * 1.0 / 0.05;
-    let dtheta = with.initial_state().motor_rad[0] - without.initial_state().motor_rad[0];
-    let expected_theta = dphi * 10.0 / (2.0 * STAINLESS_K1_N) / 0.05;
+    let du = sw.u_m - s0.u_m;
+    let expected_u = dphi * 10.0 / (2.0 * STAINLESS_K1_N);
     println!(
-        "pair force {dphi:+.6} N (m g l / r = {expected_phi:.6}); motor {dtheta:+.9} rad \
-         (phi L / (2 k1 r) = {expected_theta:+.9}; {:.1e})",
-        dtheta / expected_theta - 1.0
+        "pair force {dphi:+.6} N (m g l / r = {expected_phi:.6}); stretch {du:+.9} m \
+         (phi L / (2 k1) = {expected_u:+.9}; {:.1e})",
+        du / expected_u - 1.0
     );
     assert!((dphi.abs() / expected_phi - 1.0).abs() < 1e-9, "{dphi}");
-    assert!((dtheta / expected_theta - 1.0).abs() < 1e-9, "{dtheta}");
-    // The dynamics carry the same mass: the servo holds the boom where the statics put
-    // it (its feed-forward holds the payload's weight too).
-    let worst = held(&with);
+    assert!((du / expected_u - 1.0).abs() < 1e-9, "{du}");
+    // A payload the servo is told of ([payload]): its references hold the weight too,
+    // and the boom stays on its command.
+    let known = arm_of(&boom(
+        "payload_known",
+        "fixed",
+        "[payload]\nmass_kg = 2.0\nlink = \"tip\"\n",
+    ));
+    assert!(known.controller_spec().is_none());
+    let worst = held(&known);
+    assert!(worst < 1e-9, "{worst}");
+}
+
+#[test]
+fn a_payload_the_servo_does_not_know_sags_the_arm_by_its_compliance() {
+    // The effect's mass is unknown to the controller: the servo's references (gravity
+    // feed-forward, static stretch) are the boom's without it. At rest the servo holds
+    // its reference against the extra load with its stiffness kp (the motor gives way
+    // by r_m dphi / kp) and the ropes stretch by dphi L / (2 k1): the boom sags by
+    // dq = dtau (r_m^2 / kp + L / (2 k1)) / r^2, dtau = m g l (r = r_m = 0.05 m; to
+    // first order in m: gravity's own stiffness m g l sin q vanishes at q = 0).
+    let (m, r, kp, l_m) = (0.05, 0.05, 500.0, 10.0);
+    let with = arm_of(&boom(
+        "payload_unknown",
+        "fixed",
+        &format!("[[effect]]\nname = \"payload_mass\"\nparams = [{m}]\n"),
+    ));
+    let without = arm_of(&boom("payload_unknown0", "fixed", ""));
+    assert!(with.controller_spec().is_some());
+    let (st, s0) = (with.initial_state(), without.initial_state());
+    let dq = st.q_rad[0] - s0.q_rad[0];
+    let dtau = m * STANDARD_GRAVITY_M_S2 * 1.0;
+    let expected = dtau * (r * r / kp + l_m / (2.0 * STAINLESS_K1_N)) / (r * r);
+    let tip = |arm: &DrivenArm, q: &[f64]| arm.tip_m(q).unwrap().z;
+    println!(
+        "sag {dq:+.9} rad (closed form {expected:.9}, {:.1e}); tip {:+.6} mm",
+        dq.abs() / expected - 1.0,
+        1e3 * (tip(&with, &st.q_rad) - tip(&without, &s0.q_rad))
+    );
+    assert!(
+        (dq.abs() / expected - 1.0).abs() < 1e-3,
+        "{dq} vs {expected}"
+    );
+    // the tip goes down
+    assert!(tip(&with, &st.q_rad) < tip(&without, &s0.q_rad) - 1e-4);
+    // The servo holds the reference it computes for the boom without the payload, and
+    // balances the real load there: kp (th_ref - th) + r_m phi_ref = r_m phi.
+    assert_eq!(st.motor_ref_rad[0].to_bits(), s0.motor_ref_rad[0].to_bits());
+    let phi = with.static_pairs(&st.q_rad)[0].phi_n;
+    let phi_ref = without.static_pairs(&[0.0])[0].phi_n;
+    let give = st.motor_rad[0] - st.motor_ref_rad[0];
+    let expected_give = r * (phi_ref - phi) / kp;
+    assert!(
+        (give / expected_give - 1.0).abs() < 1e-9,
+        "{give} vs {expected_give}"
+    );
+    // That is a rest: held 1 s, the boom does not move from its sag.
+    let (q, _) = trace(&with, 1000);
+    let worst = q.iter().fold(0.0f64, |a, x| a.max((x - st.q_rad[0]).abs()));
+    println!("held within {worst:.1e} rad of the sag");
     assert!(worst < 1e-9, "{worst}");
 }
 

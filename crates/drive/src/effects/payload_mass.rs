@@ -26,15 +26,18 @@ impl Effect for PayloadMass {
         "payload_mass"
     }
     fn doc(&self) -> &'static str {
-        "The arm carries a payload the model does not know, or knows wrong: a point mass \
-         payload_mass_kg is added where the scenario puts its payload ([payload] link and \
-         offset; the tip frame's origin without one), to the link's inertial before the \
-         dynamics, the servos' gravity feed-forward and the statics are built. Held still, \
-         the ropes carry the extra weight m g l (l its lever arm about each joint): every \
-         pair's force changes by m g l / r and its ropes stretch by that force over their \
-         stiffness, so the joints sag by it (the servos hold the motors, not the links); \
-         moving, the joints' inertia grows by m l^2, so the arm's modes fall. Only data \
-         of an arm reveal it (the arm_moves kind); the rig has no payload."
+        "The arm carries a payload the model and its controller do not know, or know \
+         wrong: a point mass payload_mass_kg is added where the scenario puts its payload \
+         ([payload] link and offset; the tip frame's origin without one), to the link's \
+         inertial before the arm's dynamics and statics are built, while the servos' \
+         references (gravity feed-forward, static stretch) keep the payload they were told \
+         (the scenario's, or the run's payload_kg). Held still, the ropes carry the extra \
+         weight m g l (l its lever arm about each joint): every pair's force changes by \
+         m g l / r, the servos give way by r_m times that over kp and the ropes stretch by \
+         it over their stiffness, so the joints sag, and a distal joint whose rope runs \
+         over a sagging joint's relay turns with it; each run starts at rest there. Moving, \
+         the joints' inertia grows by m l^2, so the arm's modes fall. Only data of an arm \
+         reveal it (the arm_moves kind); the rig has no payload."
     }
     fn params(&self) -> &'static [EffectParam] {
         PARAMS

@@ -118,6 +118,10 @@ struct ArmParts {
     /// add mass: the frame and the offset in it.
     payload_kg: f64,
     payload_at: (String, [f64; 3]),
+    /// The arm the servos' references are computed for when the scenario's own effects
+    /// give it a payload the controller does not know
+    /// ([`DrivenArm::with_controller_spec`]).
+    controller: Option<ArmSpec>,
 }
 
 impl ArmParts {
@@ -130,6 +134,7 @@ impl ArmParts {
             initial_q_rad: sc.arm.initial_q_rad().to_vec(),
             payload_kg: sc.payload_kg,
             payload_at: sc.payload_at,
+            controller: sc.arm.controller_spec().cloned(),
         }
     }
 }
@@ -274,6 +279,13 @@ impl<'a> ArmPlant<'a> {
             }
         }
         let spec = payload_changed(parts, params).map_err(err)?;
+        // A payload effect's mass is unknown to the servos: their references keep the
+        // arm without it.
+        let controller = match (&parts.controller, &spec) {
+            (Some(c), _) => Some(c.clone()),
+            (None, Some(_)) => Some(parts.spec.clone()),
+            (None, None) => None,
+        };
         let (initial, commands) = run_commands(&parts.spec, &parts.pairs, &parts.initial_q_rad, r)
             .map_err(|e| err(e.to_string()))?;
         DrivenArm::with_joint_effects(
@@ -285,6 +297,10 @@ impl<'a> ArmPlant<'a> {
             dt_s,
         )
         .and_then(|arm| arm.with_flexible_links(flex_links))
+        .and_then(|arm| match controller {
+            Some(c) => arm.with_controller_spec(c),
+            None => Ok(arm),
+        })
         .map_err(|e| err(e.to_string()))
     }
 }
