@@ -12,7 +12,10 @@
 //! * `sensor_delay` (50): `fit_model` on the baseline plus `sensor_delay` started from
 //!   the registry defaults, `k1_scale` and `delay_s` (5-20 ms hidden);
 //! * `joint_friction` (50): the same with `joint_friction`, `k1_scale`, `coulomb_n_m`
-//!   (0.01-0.03 N*m hidden) and `viscous_n_m_s` (1e-4 N*m*s hidden, started at 1e-3).
+//!   (0.01-0.03 N*m hidden) and `viscous_n_m_s` (1e-4 N*m*s hidden, started at 1e-3);
+//! * `arm_joint_friction` and `arm_payload_mass` (50 each): two short moves of the
+//!   rigid longreach5 with every sensor, `k1_scale` and the effect's values drawn,
+//!   fitted at the step the data choose ([`arm_case`]).
 //!
 //! Sweeps are simulated for the data at 0.1 ms (50 sub-steps of the 5 ms samples), so
 //! that the data stand for the continuous rig: at `synth`'s default 1 ms their own
@@ -23,15 +26,15 @@
 //! the same fits, and prints both columns.
 //!
 //! `cargo test -p longreach-ident --release --test coverage -- --ignored --nocapture`
-//! (about 6 min on 2 cores). `COVERAGE_FAMILIES=sweep,relaxation` runs some families,
+//! (about 6 min on 2 cores for the rig's families, 16 min more for the arm's). `COVERAGE_FAMILIES=sweep,relaxation` runs some families,
 //! `COVERAGE_DATASETS=N` caps the datasets per family; the criterion is asserted on
 //! what ran. The small version is `intervals::` in `crates/ident/tests/ident/`.
 
 use longreach_drive::effects;
-use longreach_ident::analysis::{fit_model, Prepared};
+use longreach_ident::analysis::{fit_model, prepared_at_step, Prepared};
 use longreach_ident::fitting::{Clipped, FitResult};
 use longreach_ident::model::{BaseParam, Model, ParamDef};
-use longreach_ident::synth::{self, RelaxationOptions, SweepOptions};
+use longreach_ident::synth::{self, ArmMove, ArmMovesOptions, RelaxationOptions, SweepOptions};
 use longreach_ident::{Dataset, DatasetKind, RelaxationDataset, RelaxationSpecimen};
 use nalgebra034 as na;
 
@@ -103,7 +106,8 @@ fn classical_std_errors(prep: &Prepared<'_>, model: &Model, r: &FitResult) -> Ve
     (0..p).map(|j| (s2 * inv[(j, j)]).sqrt()).collect()
 }
 
-/// Fits `start` to the dataset at `path` and checks every value named in `truth`.
+/// Fits `start` to the dataset at `path` and checks every value named in `truth`. An
+/// arm's dataset is fitted at the step `compare` and `diagnose` choose for it.
 fn check(
     family: &'static str,
     path: &std::path::Path,
@@ -111,7 +115,7 @@ fn check(
     truth: &[(String, f64)],
 ) -> Vec<Outcome> {
     let ds = Dataset::load(path).unwrap();
-    let prep = Prepared::new(&ds).unwrap();
+    let (prep, _) = prepared_at_step(&ds, start).unwrap();
     let f = fit_model(&prep, start).unwrap();
     let r = f.fit.expect("parameters were fitted");
     let before = classical_std_errors(&prep, start, &r);
@@ -200,6 +204,56 @@ fn relaxation_case(seed: u64) -> Vec<Outcome> {
     check("relaxation", &path, &start, &truth)
 }
 
+/// An arm dataset of `family` (`arm_joint_friction` or `arm_payload_mass`): the rigid
+/// longreach5 (`scenarios/arm_dyneema2_base_trapezoid.toml`) moved by two short moves
+/// (j2 by 0.05 rad, j5 by 0.1 rad, 1.5 s each at 50 Hz with every sensor of the
+/// format), its ropes' `k1_scale` drawn in 0.9-1.1 and the effect's values drawn
+/// (joint friction: Coulomb 0.5-3 N*m, viscous 0.05-0.3 N*m*s, at every joint; payload
+/// mass: 0.5-4 kg added at the tip); fitted as `diagnose` fits the candidate: the
+/// baseline plus the effect from the registry's defaults.
+fn arm_case(family: &'static str, seed: u64) -> Vec<Outcome> {
+    let scenario = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../scenarios/arm_dyneema2_base_trapezoid.toml");
+    let mut opt = ArmMovesOptions::new(scenario, seed);
+    opt.duration_s = 1.5;
+    let mv = |joint: &str, move_rad: f64| ArmMove {
+        joint: joint.into(),
+        move_rad,
+        start_s: 0.2,
+        payload_kg: None,
+    };
+    opt.moves = vec![mv("j2", 0.05), mv("j5", 0.1)];
+    let plan = synth::arm_plan(&opt).unwrap();
+    let (effect, values) = match family {
+        "arm_joint_friction" => (
+            "joint_friction",
+            vec![0.5 + 2.5 * unit(seed, 4), 0.05 + 0.25 * unit(seed, 5), 1e-2],
+        ),
+        _ => ("payload_mass", vec![0.5 + 3.5 * unit(seed, 6)]),
+    };
+    let e = effects::find(effect).unwrap();
+    let start = Model::baseline(&plan).unwrap().with_effect(e);
+    let mut truth_model = start.clone();
+    let mut truth = Vec::new();
+    for p in truth_model.base.iter_mut() {
+        p.value = 0.9 + 0.2 * unit(seed, 7);
+        truth.push((p.name.clone(), p.value));
+    }
+    for (p, v) in truth_model.effects[0].params.iter_mut().zip(&values) {
+        p.value = *v;
+        if p.fit {
+            truth.push((p.name.clone(), *v));
+        }
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("ds");
+    synth::arm_moves(&truth_model, &plan, &opt)
+        .unwrap()
+        .write(&path, "coverage")
+        .unwrap();
+    check(family, &path, &start, &truth)
+}
+
 fn rate(k: usize, n: usize) -> f64 {
     k as f64 / n.max(1) as f64
 }
@@ -253,6 +307,15 @@ fn coverage_of_the_95_percent_intervals() {
             ));
         }
         datasets.push(("joint_friction", seeds.end - seeds.start, seeds));
+    }
+    for (family, first) in [("arm_joint_friction", 9000), ("arm_payload_mass", 9500)] {
+        if wanted(family) {
+            let seeds = first..first + count(50);
+            for s in seeds.clone() {
+                all.extend(arm_case(family, s));
+            }
+            datasets.push((family, seeds.end - seeds.start, seeds));
+        }
     }
     let wall = t0.elapsed().as_secs_f64();
     println!(
