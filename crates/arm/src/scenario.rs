@@ -438,7 +438,7 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
     // unknown payload: `payload_mass`): their arm is the one before the effects'.
     let stated_kg = doc.payload.as_ref().map_or(0.0, |p| p.mass_kg);
     let mut controller = None;
-    if payload.mass_kg != stated_kg {
+    if payload.mass_kg - stated_kg != 0.0 {
         let mut c = spec.clone();
         if doc.payload.is_some() {
             let (link, offset) = (&payload_at.0, nalgebra::Vector3::from(payload_at.1));
