@@ -103,6 +103,11 @@ impl Residuals for Problem<'_, '_, '_> {
         self.cache.prep.error_groups()
     }
 
+    fn joins_on_independent_errors(&self) -> bool {
+        // (an arm's starts join as they did before its errors were grouped)
+        self.cache.prep.kind == DataKind::ArmMoves
+    }
+
     fn refined_residuals(&self, params: &[f64], out: &mut Vec<f64>) -> Result<bool, ResidualError> {
         let prep = self.cache.prep;
         let m = self.cache.model.with_values(params, prep.runs.len());
