@@ -585,25 +585,37 @@ impl DrivenArm {
     /// Static pair forces, tensions and stretches that hold the arm at `q_rad` under
     /// gravity (`R^T phi = g(q)` on the driven joints, split by the preload).
     pub fn static_pairs(&self, q_rad: &[f64]) -> Vec<StaticPair> {
-        let mut kin = self.dynamics.make_kin();
-        let n = self.spec.ndofs();
-        let mut g = vec![0.0; n];
-        if let Some(f) = &self.flex {
-            let mut q = self.padded(q_rad);
-            let mut tau = vec![0.0; q.len()];
-            self.sagged_gravity(f, &mut q, &mut f.make_kin(), &mut tau, &mut g);
-        } else {
-            self.gravity_into(q_rad, &mut kin, &mut g);
-        }
+        let mut g = vec![0.0; self.spec.ndofs()];
+        let mut q = self.padded(q_rad);
+        self.static_gravity(&self.dynamics, self.flex.as_ref(), &mut q, &mut g);
         (0..self.drive.pairs.len())
             .map(|p| self.static_pair(p, &g))
             .collect()
     }
 
-    fn gravity_into(&self, q: &[f64], kin: &mut Kin, g: &mut [f64]) {
-        let zero = vec![0.0; q.len()];
-        self.dynamics.kinematics(q, kin);
-        self.dynamics.rnea(kin, &zero, &zero, g);
+    /// The joints' gravity torques `g` of the arm `dynamics` (with flexible links
+    /// `flex`: bent under gravity, `q`'s modal coordinates set to that bending) at the
+    /// coordinates `q`: the simulated arm's, or the controller's.
+    fn static_gravity(
+        &self,
+        dynamics: &FastDynamics,
+        flex: Option<&FlexDynamics>,
+        q: &mut [f64],
+        g: &mut [f64],
+    ) {
+        match flex {
+            Some(f) => {
+                let mut tau = vec![0.0; q.len()];
+                self.sagged_gravity(f, q, &mut f.make_kin(), &mut tau, g);
+            }
+            None => {
+                let n = g.len();
+                let zero = vec![0.0; n];
+                let mut kin = dynamics.make_kin();
+                dynamics.kinematics(&q[..n], &mut kin);
+                dynamics.rnea(&mut kin, &zero, &zero, g);
+            }
+        }
     }
 
     /// Pair force of pair `p` from the gravity torques `g`.
@@ -664,19 +676,7 @@ impl DrivenArm {
         let mut q = self.padded(&self.initial_q_rad);
         let mut g = vec![0.0; n];
         // The controller's references at the initial pose: motor angle, feed-forward.
-        match &c.flex {
-            Some(f) => {
-                let mut qc = q.clone();
-                let mut tau = vec![0.0; qc.len()];
-                self.sagged_gravity(f, &mut qc, &mut f.make_kin(), &mut tau, &mut g);
-            }
-            None => {
-                let mut kin = c.dynamics.make_kin();
-                let zero = vec![0.0; n];
-                c.dynamics.kinematics(&self.initial_q_rad, &mut kin);
-                c.dynamics.rnea(&mut kin, &zero, &zero, &mut g);
-            }
-        }
+        self.static_gravity(&c.dynamics, c.flex.as_ref(), &mut q.clone(), &mut g);
         let refs: Vec<(f64, f64)> = (0..np)
             .map(|p| {
                 let pair = &self.drive.pairs[p];
@@ -757,13 +757,7 @@ impl DrivenArm {
         let n = self.spec.ndofs();
         let np = self.drive.pairs.len();
         let mut g = vec![0.0; n];
-        match &self.flex {
-            Some(f) => {
-                let mut tau = vec![0.0; q.len()];
-                self.sagged_gravity(f, q, &mut f.make_kin(), &mut tau, &mut g);
-            }
-            None => self.gravity_into(&q[..n], &mut self.dynamics.make_kin(), &mut g),
-        }
+        self.static_gravity(&self.dynamics, self.flex.as_ref(), q, &mut g);
         let statics: Vec<StaticPair> = (0..np).map(|p| self.static_pair(p, &g)).collect();
         let rhs: Vec<f64> = self
             .drive
