@@ -41,6 +41,11 @@ pub struct FitArgs {
     /// starts from it.
     #[arg(long)]
     write_model: Option<PathBuf>,
+    /// On an arm dataset: write the dataset's arm scenario with the fitted model folded
+    /// in (ropes' k1, effects as [[effect]] with their joints and tables), for `run`,
+    /// `batch` and `modes` (docs/models.md, "Writing an arm scenario").
+    #[arg(long)]
+    write_scenario: Option<PathBuf>,
 }
 
 /// `longreach compare`.
@@ -66,6 +71,11 @@ pub struct DiagnoseArgs {
     /// Write the baseline plus the winning effect, fitted, as a model file.
     #[arg(long)]
     write_model: Option<PathBuf>,
+    /// On an arm dataset: write the dataset's arm scenario with the fitted model folded
+    /// in (ropes' k1, effects as [[effect]] with their joints and tables), for `run`,
+    /// `batch` and `modes` (docs/models.md, "Writing an arm scenario").
+    #[arg(long)]
+    write_scenario: Option<PathBuf>,
     #[command(flatten)]
     rerun: RerunArgs,
 }
@@ -259,6 +269,7 @@ pub fn run_fit(a: &FitArgs) -> Result<ExitCode> {
         crate::output::check_output_file(p, "--write-model")?;
     }
     let (ds, model) = load(&a.data)?;
+    check_write_scenario(a.write_scenario.as_deref(), &ds)?;
     let (prep, _) = prepare(&ds, &model)?;
     let f = analysis::fit_model(&prep, &model).map_err(message)?;
     let mut numbers = vec![
@@ -352,7 +363,37 @@ pub fn run_fit(a: &FitArgs) -> Result<ExitCode> {
         let text = f.model.to_toml_with_fit(&comment, f.fit.as_ref());
         write_atomic(p, text.as_bytes())?;
     }
+    if let Some(p) = &a.write_scenario {
+        let comment = format!(
+            "written by `longreach fit` for dataset {}: NRMSE {:.5} (noise floor {:.5})",
+            ds.title, f.nrmse, f.noise_floor
+        );
+        write_scenario(p, &ds, &f.model, &comment)?;
+    }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `--write-scenario`: the output file is writable and the dataset an arm's.
+fn check_write_scenario(p: Option<&Path>, ds: &Dataset) -> Result<()> {
+    let Some(p) = p else { return Ok(()) };
+    crate::output::check_output_file(p, "--write-scenario")?;
+    if !matches!(ds.kind, longreach_ident::DatasetKind::ArmMoves(_)) {
+        bail!(
+            "--write-scenario writes an arm scenario and needs an arm dataset (arm_moves); {} is a {} dataset\n  fix: use --write-model for the rig's and the specimens' data",
+            ds.title,
+            ds.kind.name()
+        );
+    }
+    Ok(())
+}
+
+/// Writes the dataset's arm scenario with `model` folded in to `p` (atomically).
+fn write_scenario(p: &Path, ds: &Dataset, model: &Model, comment: &str) -> Result<()> {
+    let text = longreach_ident::arm_scenario::arm_scenario_text(ds, model, p, comment)
+        .map_err(|e| anyhow!("--write-scenario {}: {e}", p.display()))?;
+    write_atomic(p, text.as_bytes())?;
+    println!("wrote the arm scenario {}", p.display());
+    Ok(())
 }
 
 fn print_comparison(c: &Comparison) {
@@ -492,6 +533,7 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
         crate::output::check_output_file(p, "--write-model")?;
     }
     let (ds, model) = load(&a.data)?;
+    check_write_scenario(a.write_scenario.as_deref(), &ds)?;
     let rec = a.rerun.recorder(
         &format!("diagnose {}", a.data.dataset.display()),
         &rerun_args::default_rrd(None, &a.data.dataset, "_diagnose"),
@@ -649,6 +691,21 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
         );
         let text = fitted.model.to_toml_with_fit(&comment, fitted.fit.as_ref());
         write_atomic(p, text.as_bytes())?;
+    }
+    if let Some(p) = &a.write_scenario {
+        let fitted = winner.as_ref().unwrap_or(&base);
+        let comment = format!(
+            "written by `longreach diagnose` for dataset {}: with {}, NRMSE {} (baseline {:.5})",
+            ds.title,
+            if d.missing_effects.is_empty() {
+                "no effect".to_string()
+            } else {
+                d.missing_effects.join(" and ")
+            },
+            d.nrmse_after.map_or("-".into(), |x| format!("{x:.5}")),
+            d.baseline.nrmse
+        );
+        write_scenario(p, &ds, &fitted.model, &comment)?;
     }
     if let Some(dir) = &a.report {
         let m = winner.as_ref().map_or(&base, |w| w);

@@ -306,6 +306,77 @@ fn arm_synth_compare_report() {
     ]);
     assert!(ok, "{err}");
     assert!(json(&j)["worst_ratio"].as_f64().unwrap() > 10.0);
+    // Friction hidden at j5 alone (a model file's `joints`), fitted there and written
+    // back as the arm's scenario (`--write-scenario`): the dataset's arm replaced by
+    // it, the baseline is at the floor again, and `run` simulates it.
+    let truth = tmp.path().join("truth.toml");
+    std::fs::write(
+        &truth,
+        "[[effect]]\nname = \"joint_friction\"\njoints = [\"j5\"]\n\
+         [effect.params.coulomb_n_m]\nvalue = 1.0\n[effect.params.viscous_n_m_s]\nvalue = 0.1\n",
+    )
+    .unwrap();
+    let (ok, _, err) = synth(&["--move", "j5:0.2", "--model", truth.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    let model = tmp.path().join("m.toml");
+    std::fs::write(
+        &model,
+        "[[effect]]\nname = \"joint_friction\"\njoints = [\"j5\"]\n\
+         [effect.params.coulomb_n_m]\nvalue = 0.5\nfit = true\nlower = 1e-6\nupper = 1e3\n\
+         [effect.params.viscous_n_m_s]\nvalue = 0.01\nfit = true\nlower = 0\nupper = 1e3\n",
+    )
+    .unwrap();
+    let written = tmp.path().join("arm_fitted.toml");
+    let (ok, stdout, err) = longreach(&[
+        "fit",
+        out.to_str().unwrap(),
+        "--model",
+        model.to_str().unwrap(),
+        "--write-scenario",
+        written.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(stdout.contains("wrote the arm scenario"), "{stdout}");
+    let text = std::fs::read_to_string(&written).unwrap();
+    assert!(
+        text.contains("name = \"joint_friction\"") && text.contains("joints = [\"j5\"]"),
+        "{text}"
+    );
+    let arm = out.join("arm.toml");
+    let (ok, _, err) = longreach(&[
+        "fit",
+        out.to_str().unwrap(),
+        "--model",
+        model.to_str().unwrap(),
+        "--write-scenario",
+        arm.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    let (ok, _, err) = longreach(&[
+        "compare",
+        out.to_str().unwrap(),
+        "--json",
+        j.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    let worst = json(&j)["worst_ratio"].as_f64().unwrap();
+    assert!(worst <= 1.5, "the written scenario at {worst}x the floor");
+    let runs = tmp.path().join("runs");
+    let (ok, _, err) = longreach(&[
+        "run",
+        written.to_str().unwrap(),
+        "--out",
+        runs.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    // Not on the rig's data.
+    let (ok, _, err) = longreach(&[
+        "fit",
+        example("example_sweep_control").to_str().unwrap(),
+        "--write-scenario",
+        written.to_str().unwrap(),
+    ]);
+    assert!(!ok && err.contains("needs an arm dataset"), "{err}");
     // A move of a joint the scenario does not drive.
     let (ok, _, err) = synth(&["--move", "j9:0.1"]);
     assert!(!ok && err.contains("`j9` is not driven"), "{err}");

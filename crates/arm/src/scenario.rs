@@ -45,6 +45,10 @@ struct ArmEffectSection {
     /// Only these joints (their pairs and bearings); default: every joint.
     #[serde(default)]
     joints: Option<Vec<String>>,
+    /// The effect's law as a table (`[effect.shape]`: its argument's knots and the
+    /// values there, under their names; docs/models.md), replacing its formula.
+    #[serde(default)]
+    shape: Option<toml::Table>,
 }
 
 /// `[[flex]]`: a flexible link (`link = "*"`: every moving link).
@@ -146,6 +150,9 @@ struct TransmissionSection {
     rope: RopeRef,
     #[serde(default)]
     law: Option<LawKind>,
+    /// Multiplies the rope's k1 (an identified arm's ropes: `--write-scenario`).
+    #[serde(default = "one_f")]
+    k1_scale: f64,
     #[serde(default = "one")]
     ropes_in_parallel: u32,
     joint_radius_m: f64,
@@ -366,7 +373,10 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
     let mut arm_effects = Vec::new();
     for (i, e) in doc.effect.iter().enumerate() {
         let field = format!("effect.{i}");
-        let a = registered(&e.name, &e.params, &field, &ferr)?;
+        let mut a = registered(&e.name, &e.params, &field, &ferr)?;
+        if let Some(t) = &e.shape {
+            a = shaped(a, t, &format!("{field}.shape"), &ferr)?;
+        }
         if a.effect.site() == Site::Sensor {
             return Err(ferr(
                 &field,
@@ -561,7 +571,16 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
     let mut commands = vec![Command::Hold; n];
     for (i, (sec, &j)) in sections.iter().zip(&joints).enumerate() {
         let f = |k: &str| format!("transmission.{i}.{k}");
-        let (rope_name, params, law) = resolve_rope(text, file, &f("rope"), &sec.rope, sec.law)?;
+        let (rope_name, params, mut law) =
+            resolve_rope(text, file, &f("rope"), &sec.rope, sec.law)?;
+        if !(sec.k1_scale.is_finite() && sec.k1_scale > 0.0) {
+            return Err(ferr(
+                &f("k1_scale"),
+                format!("k1_scale must be a positive number, got {}", sec.k1_scale),
+                "give the factor on the rope's k1 (1: the rope as catalogued)",
+            ));
+        }
+        law.k1_n *= sec.k1_scale;
         // Registered effects of this transmission, `effects = [{ name, params = [...] }]`
         // (parameters in the effect's order; none: its defaults), applied at their
         // sites once the pair is built: the rope law and the pair, or the driven joint.
@@ -805,6 +824,54 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<ArmScenario, Scenari
         payload_at,
         warnings,
     })
+}
+
+/// `a` with its law as the table `t` (`[effect.shape]`: the knots under the argument's
+/// name, the values under the value's); errors name `field`.
+fn shaped(
+    a: Applied,
+    t: &toml::Table,
+    field: &str,
+    ferr: &dyn Fn(&str, String, &str) -> ScenarioError,
+) -> Result<Applied, ScenarioError> {
+    let name = a.effect.name();
+    let Some(shape) = a.effect.shape() else {
+        return Err(ferr(
+            field,
+            format!("'{name}' has no shape-free form"),
+            "remove [effect.shape]",
+        ));
+    };
+    let (arg, val) = (shape.argument.name(), shape.value);
+    let fix = format!(
+        "write [effect.shape] with {arg} = [0, ...] (knots from 0, increasing) and {val} = [...] (one value per knot)"
+    );
+    let list = |key: &str| -> Result<Vec<f64>, ScenarioError> {
+        t.get(key)
+            .and_then(|v| v.as_array())
+            .and_then(|a| {
+                a.iter()
+                    .map(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
+                    .collect::<Option<Vec<f64>>>()
+            })
+            .ok_or_else(|| {
+                ferr(
+                    &format!("{field}.{key}"),
+                    format!("needs {key} = [numbers]"),
+                    &fix,
+                )
+            })
+    };
+    if let Some(k) = t.keys().find(|k| ![arg, val, "fit"].contains(&k.as_str())) {
+        return Err(ferr(
+            &format!("{field}.{k}"),
+            format!("unknown key `{k}`"),
+            &fix,
+        ));
+    }
+    let table = longreach_rope::Table::new(&list(arg)?, &list(val)?)
+        .map_err(|e| ferr(field, e.to_string(), &fix))?;
+    Applied::shaped(a.effect, a.values, table).map_err(|e| ferr(field, e.to_string(), &fix))
 }
 
 /// The registered effect `name` with `params` (in its order; none: its defaults),

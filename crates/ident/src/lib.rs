@@ -23,6 +23,7 @@ pub use fitting::{
 pub use metrics::MetricsError;
 pub use sensors::{Encoder, GaussianNoise, SensorError, ENCODER_RESOLUTION_RAD};
 pub mod analysis;
+pub mod arm_scenario;
 pub mod model;
 pub mod plant;
 pub mod sim;

@@ -161,6 +161,10 @@ pub struct PlantParams {
     pub base: Vec<(BaseParam, f64)>,
     /// The rope-law effects (already applied to `law`), for the same plants.
     pub rope_effects: Vec<Applied>,
+    /// For each of [`Self::effects`], the driven joints it is restricted to (an arm's
+    /// per-joint values, [`EffectUse::joints`]); `None`: every joint. A rope-law effect
+    /// restricted to some joints is in `effects`, not applied to `law`.
+    pub effect_joints: Vec<Option<Vec<String>>>,
 }
 
 impl ParamDef {
@@ -199,6 +203,30 @@ pub struct EffectUse {
     /// Its shape-free form, when the model holds the effect's law as a table
     /// ([`longreach_drive::effects::Shape`]); the parameters it replaces are held.
     pub shape: Option<ShapeUse>,
+    /// On an arm, the driven joints (names, as the dataset's columns) whose pairs and
+    /// bearings take these values; `None`: every driven joint. The same effect may be
+    /// in a model several times, on disjoint joints: its values per joint.
+    pub joints: Option<Vec<String>>,
+}
+
+impl EffectUse {
+    /// The effect's name with its joints when it is restricted to some
+    /// (`joint_friction@j2+j5`): how its parameters are named in fits and reports.
+    pub fn label(&self) -> String {
+        match &self.joints {
+            None => self.effect.name().to_string(),
+            Some(j) => format!("{}@{}", self.effect.name(), j.join("+")),
+        }
+    }
+
+    /// The fitted name of parameter `p` of this effect: `p`'s own, with `@joints` when
+    /// the effect is restricted to some.
+    pub fn param_name(&self, p: &ParamDef) -> String {
+        match &self.joints {
+            None => p.name.clone(),
+            Some(j) => format!("{}@{}", p.name, j.join("+")),
+        }
+    }
 }
 
 /// The shape-free form of an effect in a model: the table's knots (fixed: placed over
@@ -473,6 +501,15 @@ impl Model {
         out
     }
 
+    /// The fitted name of `p`, a parameter of `owner`: its own, with the joints of an
+    /// effect restricted to some ([`EffectUse::param_name`]).
+    pub fn param_name(&self, owner: Owner, p: &ParamDef) -> String {
+        match owner {
+            Owner::Base => p.name.clone(),
+            Owner::Effect(e) | Owner::Shape(e) => self.effects[e].param_name(p),
+        }
+    }
+
     /// The parameter in slot `s`.
     pub fn param(&self, s: &Slot) -> &ParamDef {
         match s.owner {
@@ -505,9 +542,10 @@ impl Model {
             .iter()
             .map(|s| {
                 let p = self.param(s);
+                let name = self.param_name(s.owner, p);
                 let name = match s.run {
-                    Some(r) => format!("{}[{}]", p.name, r),
-                    None => p.name.clone(),
+                    Some(r) => format!("{name}[{r}]"),
+                    None => name,
                 };
                 let v0 = s.run.map_or(p.value, |r| p.value_for(r));
                 let init = crate::fitting::strictly_inside(v0, p.lower, p.upper);
@@ -585,6 +623,7 @@ impl Model {
             effects: Vec::new(),
             base: Vec::new(),
             rope_effects: Vec::new(),
+            effect_joints: Vec::new(),
         };
         for b in &self.base {
             if let Role::Base(param) = b.role {
@@ -605,7 +644,7 @@ impl Model {
                 effect: u.effect.name(),
                 source,
             })?;
-            if u.effect.site() == Site::RopeLaw {
+            if u.effect.site() == Site::RopeLaw && u.joints.is_none() {
                 applied
                     .apply_to_law(&mut p.law)
                     .map_err(|source| ModelError::Effect {
@@ -615,6 +654,7 @@ impl Model {
                 p.rope_effects.push(applied);
             } else {
                 p.effects.push(applied);
+                p.effect_joints.push(u.joints.clone());
             }
         }
         p.law.validate()?;
@@ -650,6 +690,7 @@ impl Model {
                 })
                 .collect(),
             shape: None,
+            joints: None,
         });
         m
     }
@@ -715,20 +756,25 @@ impl Model {
         let all = self
             .base
             .iter()
-            .chain(self.effects.iter().flat_map(|u| u.params.iter()))
+            .map(|p| (p.name.clone(), p))
             .chain(
                 self.effects
                     .iter()
-                    .flat_map(|u| u.shape.iter().flat_map(|sh| sh.params.iter())),
-            );
-        for p in all {
+                    .flat_map(|u| u.params.iter().map(move |p| (u.param_name(p), p))),
+            )
+            .chain(self.effects.iter().flat_map(|u| {
+                u.shape
+                    .iter()
+                    .flat_map(move |sh| sh.params.iter().map(move |p| (u.param_name(p), p)))
+            }));
+        for (name, p) in all {
             match &p.run_values {
                 Some(v) if p.per_run => {
                     for (r, x) in v.iter().enumerate() {
-                        out.push((format!("{}[{}]", p.name, r), *x));
+                        out.push((format!("{name}[{r}]"), *x));
                     }
                 }
-                _ => out.push((p.name.clone(), p.value)),
+                _ => out.push((name, p.value)),
             }
         }
         out
@@ -752,11 +798,11 @@ impl Model {
                 r.interval_clipped[i].as_str().unwrap_or(""),
             ))
         };
-        let interval_line = |p: &ParamDef| -> Option<String> {
+        let interval_line = |name: &str, p: &ParamDef| -> Option<String> {
             let (text, clipped) = match &p.run_values {
                 Some(v) if p.per_run => {
                     let each: Option<Vec<(String, &str)>> = (0..v.len())
-                        .map(|r| interval(&format!("{}[{r}]", p.name)))
+                        .map(|r| interval(&format!("{name}[{r}]")))
                         .collect();
                     let each = each?;
                     let clipped = each.iter().any(|(_, c)| !c.is_empty());
@@ -766,7 +812,7 @@ impl Model {
                         if clipped { "some" } else { "" },
                     )
                 }
-                _ => interval(&p.name)?,
+                _ => interval(name)?,
             };
             let note = match clipped {
                 "" => String::new(),
@@ -787,7 +833,7 @@ impl Model {
             self.rope,
             self.law_kind.as_str()
         ));
-        let param = |s: &mut String, prefix: &str, p: &ParamDef| {
+        let param = |s: &mut String, prefix: &str, name: &str, p: &ParamDef| {
             s.push_str(&format!("\n[{prefix}.{}]\n", p.name));
             s.push_str(&format!("value = {:e}\n", p.value));
             if let Some(v) = &p.run_values {
@@ -798,17 +844,21 @@ impl Model {
                 "fit = {}\nlower = {:e}\nupper = {:e}\nper_run = {}\n",
                 p.fit, p.lower, p.upper, p.per_run
             ));
-            if let Some(line) = interval_line(p) {
+            if let Some(line) = interval_line(name, p) {
                 s.push_str(&line);
             }
         };
         for p in &self.base {
-            param(&mut s, "params", p);
+            param(&mut s, "params", &p.name, p);
         }
         for u in &self.effects {
             s.push_str(&format!("\n[[effect]]\nname = \"{}\"\n", u.effect.name()));
+            if let Some(j) = &u.joints {
+                let list: Vec<String> = j.iter().map(|n| format!("\"{n}\"")).collect();
+                s.push_str(&format!("joints = [{}]\n", list.join(", ")));
+            }
             for p in &u.params {
-                param(&mut s, "effect.params", p);
+                param(&mut s, "effect.params", &u.param_name(p), p);
             }
             if let Some(sh) = &u.shape {
                 s.push_str(&sh.to_toml());
@@ -927,7 +977,7 @@ impl Model {
         } else {
             base = Model::baseline(ds)?.base;
         }
-        let mut effects_out = Vec::new();
+        let mut effects_out: Vec<EffectUse> = Vec::new();
         if let Some(v) = doc.get("effect") {
             let arr = v.as_array().ok_or_else(|| {
                 err(
@@ -1011,10 +1061,38 @@ impl Model {
                     ps.push(p);
                 }
                 let shape = parse_shape(text, file, &path, effect, t)?;
+                let joints = parse_joints(text, file, &path, effect, t, ds)?;
+                for k in t.keys() {
+                    if !["name", "params", "shape", "joints"].contains(&k.as_str()) {
+                        return Err(err(
+                            &format!("{path}.{k}"),
+                            format!("unknown key `{k}` in an [[effect]]"),
+                            "an [[effect]] holds name, joints (arms), [effect.params.NAME] and [effect.shape] (docs/models.md)",
+                        ));
+                    }
+                }
+                // The same effect twice: on disjoint joints only (its values per joint).
+                for (j, other) in effects_out.iter().enumerate() {
+                    if !effects::same(other.effect, effect) {
+                        continue;
+                    }
+                    let overlap = match (&other.joints, &joints) {
+                        (Some(a), Some(b)) => a.iter().find(|x| b.contains(x)).cloned(),
+                        _ => Some("every joint".to_string()),
+                    };
+                    if let Some(at) = overlap {
+                        return Err(err(
+                            &path,
+                            format!("effect `{name}` is given twice on {at} (also [[effect]] {j})"),
+                            "give an effect once, or once per joint with disjoint `joints` lists",
+                        ));
+                    }
+                }
                 effects_out.push(EffectUse {
                     effect,
                     params: ps,
                     shape: None,
+                    joints,
                 });
                 if let Some(sh) = shape {
                     let last = effects_out.len() - 1;
@@ -1040,6 +1118,74 @@ impl Model {
             .map_err(|e| err("effect", e.to_string(), "correct the parameter values"))?;
         Ok(m)
     }
+}
+
+/// The `joints` list of effect `effect` at `path` in a model file, if any: names of
+/// joints the dataset's arm drives, each once; only on arm datasets, and not for an
+/// effect on a link or a sensor.
+fn parse_joints(
+    text: &str,
+    file: &str,
+    path: &str,
+    effect: &dyn Effect,
+    t: &toml::Table,
+    ds: &Dataset,
+) -> Result<Option<Vec<String>>, ModelError> {
+    let Some(v) = t.get("joints") else {
+        return Ok(None);
+    };
+    let field = format!("{path}.joints");
+    let err = |msg: String, fix: &str| ModelError::File(field_error(text, file, &field, msg, fix));
+    let DatasetKind::ArmMoves(am) = &ds.kind else {
+        return Err(err(
+            "`joints` applies to arm datasets (arm_moves) only".into(),
+            "remove `joints`: the rig has one joint",
+        ));
+    };
+    if matches!(effect.site(), Site::Link | Site::Sensor) {
+        return Err(err(
+            format!(
+                "effect `{}` acts on {}, not at joints",
+                effect.name(),
+                if effect.site() == Site::Link {
+                    "links"
+                } else {
+                    "sensor channels"
+                }
+            ),
+            "remove `joints` from this effect",
+        ));
+    }
+    let driven = am.joints.join(", ");
+    let names: Vec<String> = v
+        .as_array()
+        .and_then(|a| {
+            a.iter()
+                .map(|x| x.as_str().map(str::to_string))
+                .collect::<Option<Vec<_>>>()
+        })
+        .filter(|n| !n.is_empty())
+        .ok_or_else(|| {
+            err(
+                "must be a non-empty list of joint names".into(),
+                &format!("write joints = [\"j2\"] with joints the arm drives: {driven}"),
+            )
+        })?;
+    for (i, n) in names.iter().enumerate() {
+        if !am.joints.contains(n) {
+            return Err(err(
+                format!("joint `{n}` is not driven by the dataset's arm"),
+                &format!("use joints the arm drives: {driven}"),
+            ));
+        }
+        if names[..i].contains(n) {
+            return Err(err(
+                format!("joint `{n}` is listed twice"),
+                "list each joint once",
+            ));
+        }
+    }
+    Ok(Some(names))
 }
 
 /// The `[effect.shape]` table of effect `effect` at `path` in a model file, if any

@@ -8,8 +8,8 @@ use serde::Serialize;
 use super::fit::fit_simulated;
 use super::{
     compare, describe, fit_model, fit_model_from, refine_shape, scan_coordinates, screen_model,
-    searched_starts, signatures, Comparison, Fitted, Prepared, RunResonance, ShapeRefinement,
-    Signature, Start, Where,
+    searched_starts, signatures, split_per_joint, Comparison, Fitted, JointSplit, Prepared,
+    RunResonance, ShapeRefinement, Signature, Start, Where,
 };
 use crate::error::IdentError;
 use crate::model::Model;
@@ -98,6 +98,9 @@ pub struct Diagnosis {
     /// effects when it misses the data, then the best candidate's when its catalog
     /// formula leaves the data well above the floor.
     pub refinements: Vec<ShapeRefinement>,
+    /// An arm effect's values split per joint ([`split_per_joint`]): the best
+    /// candidate's, when its shared values leave the data well above the floor.
+    pub joint_splits: Vec<JointSplit>,
     /// An arm's simulation step, s (the longest of any run at the prepared data's
     /// refinement, [`Prepared::with_arm_refinement`]); `None` for the rig and specimens.
     pub simulation_step_s: Option<f64>,
@@ -326,6 +329,57 @@ fn refine_or_note(
             None
         }
     }
+}
+
+/// [`split_per_joint`], a failure noted for the explanation instead of ending the
+/// diagnosis.
+fn split_or_note(
+    prep: &Prepared<'_>,
+    f: &Fitted,
+    e: usize,
+    notes: &mut Vec<String>,
+) -> Option<(JointSplit, Fitted)> {
+    let name = f.model.effects[e].effect.name();
+    match split_per_joint(prep, f, e) {
+        Ok(r) => r,
+        Err(err) => {
+            notes.push(format!(
+                "Giving {name} its values per joint failed: {err}. "
+            ));
+            None
+        }
+    }
+}
+
+/// One sentence on a per-joint split: the values per joint, what it changed, whether
+/// it was kept.
+fn describe_split(s: &JointSplit) -> String {
+    let each: Vec<String> = s
+        .joints
+        .iter()
+        .map(|j| {
+            let v: Vec<String> = j
+                .values
+                .iter()
+                .map(|(n, x)| format!("{n} {}", significant(*x)))
+                .collect();
+            format!("{} ({})", j.joint, v.join(", "))
+        })
+        .collect();
+    format!(
+        "{} with its values per joint: {}{}; NRMSE {:.4} against {:.4} with one value for every joint (BIC improvement {:.1}): {}. ",
+        s.effect,
+        each.join("; "),
+        if s.held.is_empty() {
+            String::new()
+        } else {
+            format!(" ({} not moved, one value)", s.held.join(", "))
+        },
+        s.nrmse,
+        s.nrmse_shared,
+        s.score,
+        if s.kept { "kept" } else { "not kept" }
+    )
 }
 
 /// Whether candidate `f` is a contender whose law [`refine_contenders`] refines: it
@@ -855,16 +909,46 @@ pub fn diagnose(
     let parametric = if at_floor { Vec::new() } else { cands.clone() };
     // The best candidate's law in its shape-free form when its catalog formula leaves
     // the data well above the floor: the effect may be right and its formula wrong.
+    // On an arm, an effect at the joints or motors may first take its values per joint
+    // (a shoulder's bearing is not a wrist's); its law is then refined only when the
+    // split leaves the data above the margin too, and the better of the two by BIC kept.
+    let mut joint_splits = Vec::new();
     if !at_floor {
         if let Some((c, Some(f))) = cands.first() {
             if f.nrmse > REFINE_MARGIN * f.noise_floor && c.explained > 0.0 {
+                let (c, f) = (c.clone(), f.clone());
                 let e = f.model.effects.len().saturating_sub(1);
-                if let Some((r, refined)) = refine_or_note(prep, f, e, &mut notes) {
+                let split = split_or_note(prep, &f, e, &mut notes);
+                let split_kept = split.as_ref().filter(|(s, _)| s.kept);
+                let shaped = match split_kept {
+                    Some((_, sf)) if sf.nrmse <= REFINE_MARGIN * sf.noise_floor => None,
+                    _ => refine_or_note(prep, &f, e, &mut notes),
+                };
+                let shape_score = shaped
+                    .as_ref()
+                    .filter(|(r, _)| r.kept)
+                    .map(|(r, _)| r.score);
+                let split_wins =
+                    split_kept.is_some_and(|(s, _)| shape_score.is_none_or(|x| s.score >= x));
+                let mut best = None;
+                if let Some((mut s, sf)) = split {
+                    s.kept = s.kept && split_wins;
+                    notes.push(describe_split(&s));
+                    if s.kept {
+                        best = Some(sf);
+                    }
+                    joint_splits.push(s);
+                }
+                if let Some((mut r, refined)) = shaped {
+                    r.kept = r.kept && !split_wins;
                     if r.kept {
-                        cands[0] = (judge.candidate(c.effect.clone(), &refined), Some(refined));
-                        rank(&mut cands);
+                        best = Some(refined);
                     }
                     refinements.push(r);
+                }
+                if let Some(b) = best {
+                    cands[0] = (judge.candidate(c.effect.clone(), &b), Some(b));
+                    rank(&mut cands);
                 }
             }
         }
@@ -1065,6 +1149,7 @@ pub fn diagnose(
         comparison: cmp,
         signatures: sigs,
         refinements,
+        joint_splits,
         simulation_step_s: match &prep.ds.kind {
             crate::DatasetKind::ArmMoves(am) => {
                 Some(crate::plant::longest_step_s(am, prep.arm_refinement))

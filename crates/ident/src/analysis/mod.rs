@@ -17,6 +17,8 @@
 //!   figures of every move);
 //! * `diagnose.rs`: the baseline and every applicable registered effect fitted, ranked,
 //!   and the missing effect named when the evidence is decisive ([`diagnose`]);
+//! * `joints.rs`: an arm effect's values split per joint (one use per moved joint,
+//!   kept by BIC; [`split_per_joint`]);
 //! * `shape.rs`: an effect's law refined in its shape-free form (a table over the range
 //!   the data visits, the number of knots chosen by BIC; [`refine_shape`]);
 //! * `signature.rs`: the residual's signatures, each with the simplest term that would
@@ -26,6 +28,7 @@ mod arm;
 mod compare;
 mod diagnose;
 mod fit;
+mod joints;
 mod prepare;
 mod shape;
 mod signature;
@@ -47,6 +50,7 @@ pub use fit::{
     fit_model, fit_model_from, scan_coordinates, screen_model, searched_starts, Fitted, Start,
     ARM_EVALUATIONS_PER_PARAM, DEAR_EVALUATIONS_PER_PARAM,
 };
+pub use joints::{moved_joints, split_per_joint, splittable, JointSplit, JointValues};
 pub use prepare::{
     noise_sigma_second_difference, primary_name, ChannelData, ChannelSums, Prepared, RunData,
 };

@@ -40,6 +40,7 @@ pub use types::{
     Segment, SweepDataset, SweepRun, Tensioner, WindowAlignment,
 };
 pub use write::check_target;
+pub(crate) use write::rebase_urdf;
 
 /// The only format string this reader understands (`format = ...` in `dataset.toml`).
 pub const FORMAT: &str = "longreach-measurement/1";

@@ -461,7 +461,32 @@ fn scenario_copy(path: &Path, dir: &Path) -> Result<String, String> {
     let mut doc: toml::Table = text
         .parse()
         .map_err(|e| format!("the arm scenario {} is not TOML: {e}", path.display()))?;
-    let base = path.parent().unwrap_or(Path::new("."));
+    rebase_urdf(&mut doc, path.parent().unwrap_or(Path::new(".")), dir)?;
+    let drop_command = |t: &mut toml::Table| {
+        t.remove("command");
+    };
+    if let Some(ts) = doc.get_mut("transmission").and_then(|t| t.as_array_mut()) {
+        for t in ts.iter_mut().filter_map(|t| t.as_table_mut()) {
+            drop_command(t);
+        }
+    }
+    if let Some(d) = doc
+        .get_mut("transmission_defaults")
+        .and_then(|t| t.as_table_mut())
+    {
+        drop_command(d);
+    }
+    let body = toml::to_string(&doc).map_err(|e| format!("cannot encode the scenario: {e}"))?;
+    Ok(format!(
+        "# The arm these moves were measured on: a copy of {} (URDF path relative to this\n\
+         # folder; [sim] and the commands are not used, the runs hold the commands).\n\n{body}",
+        path.file_name().unwrap_or_default().to_string_lossy()
+    ))
+}
+
+/// The URDF path of the arm scenario `doc` (read from the folder `base`) made relative
+/// to the folder `dir` (which may not exist yet: its parent is created).
+pub(crate) fn rebase_urdf(doc: &mut toml::Table, base: &Path, dir: &Path) -> Result<(), String> {
     let abs = |p: &Path| -> Result<PathBuf, String> {
         let p = if p.is_absolute() {
             p.to_path_buf()
@@ -492,26 +517,7 @@ fn scenario_copy(path: &Path, dir: &Path) -> Result<String, String> {
         let rel = relative_path(&dir_abs, &urdf_abs);
         *urdf = toml::Value::String(rel.to_string_lossy().replace('\\', "/"));
     }
-    let drop_command = |t: &mut toml::Table| {
-        t.remove("command");
-    };
-    if let Some(ts) = doc.get_mut("transmission").and_then(|t| t.as_array_mut()) {
-        for t in ts.iter_mut().filter_map(|t| t.as_table_mut()) {
-            drop_command(t);
-        }
-    }
-    if let Some(d) = doc
-        .get_mut("transmission_defaults")
-        .and_then(|t| t.as_table_mut())
-    {
-        drop_command(d);
-    }
-    let body = toml::to_string(&doc).map_err(|e| format!("cannot encode the scenario: {e}"))?;
-    Ok(format!(
-        "# The arm these moves were measured on: a copy of {} (URDF path relative to this\n\
-         # folder; [sim] and the commands are not used, the runs hold the commands).\n\n{body}",
-        path.file_name().unwrap_or_default().to_string_lossy()
-    ))
+    Ok(())
 }
 
 /// `to` relative to the folder `from` (both absolute).

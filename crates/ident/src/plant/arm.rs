@@ -8,8 +8,11 @@
 //! - base parameters (`k1_scale`, ...) and rope-law effects act on every pair's own
 //!   rope law (the pairs may hold different ropes; the model's rope is the first
 //!   pair's);
-//! - pair-site effects (`relay_friction`) act on every pair, joint-site effects
-//!   (`joint_friction`) at every driven joint, with the same values;
+//! - pair-site effects (`relay_friction`, `motor_friction`) act on every pair,
+//!   joint-site effects (`joint_friction`) at every driven joint, with the same values,
+//!   or only at the joints a model's effect is restricted to (`joints`: its values per
+//!   joint, [`crate::model::EffectUse::joints`]); a rope-law effect so restricted acts
+//!   on those joints' pairs;
 //! - sensor-site effects act on the channels they name;
 //! - link-site effects that act on a link's bending (`link_flexibility`) act on every
 //!   flexible link of the scenario (`[[flex]]`, the scenario's own link effects kept),
@@ -216,6 +219,14 @@ impl<'a> ArmPlant<'a> {
             message,
         };
         let parts = self.parts[run].as_ref().map_err(|m| err(m.clone()))?;
+        // An effect restricted to some joints ([`PlantParams::effect_joints`]) acts at
+        // the pairs and bearings of those joints only.
+        let at = |i: usize, joint: usize| -> bool {
+            match params.effect_joints.get(i).and_then(Option::as_ref) {
+                None => true,
+                Some(names) => names.contains(&parts.spec.joints[joint].name),
+            }
+        };
         let mut pairs = parts.pairs.clone();
         for pair in &mut pairs {
             let mut p = PlantParams {
@@ -224,18 +235,21 @@ impl<'a> ArmPlant<'a> {
                 effects: Vec::new(),
                 base: Vec::new(),
                 rope_effects: Vec::new(),
+                effect_joints: Vec::new(),
             };
             for &(b, v) in &params.base {
                 b.apply(v, &mut p).map_err(|e| err(e.to_string()))?;
             }
             pair.law = p.law;
-            for a in
-                params
-                    .rope_effects
-                    .iter()
-                    .chain(params.effects.iter().filter(|a| {
-                        !matches!(a.effect.site(), Site::Joint | Site::Sensor | Site::Link)
-                    }))
+            let joint = pair.joint;
+            for a in params
+                .rope_effects
+                .iter()
+                .chain(params.effects.iter().enumerate().filter_map(|(i, a)| {
+                    (!matches!(a.effect.site(), Site::Joint | Site::Sensor | Site::Link)
+                        && at(i, joint))
+                    .then_some(a)
+                }))
             {
                 a.apply_to_pair(pair)
                     .map_err(|e| err(format!("effect {}: {e}", a.effect.name())))?;
@@ -243,12 +257,13 @@ impl<'a> ArmPlant<'a> {
             }
         }
         let mut joint_effects = parts.joint_effects.clone();
-        for a in params
+        for (i, a) in params
             .effects
             .iter()
-            .filter(|a| a.effect.site() == Site::Joint)
+            .enumerate()
+            .filter(|(_, a)| a.effect.site() == Site::Joint)
         {
-            for pair in &parts.pairs {
+            for pair in parts.pairs.iter().filter(|p| at(i, p.joint)) {
                 joint_effects.retain(|(j, b)| {
                     *j != pair.joint || !longreach_drive::effects::same(a.effect, b.effect)
                 });
@@ -335,7 +350,7 @@ fn payload_changed(parts: &ArmParts, params: &PlantParams) -> Result<Option<ArmS
 
 /// Whether `effect` acts on a flexible link's bending (its `on_link` hook, probed
 /// with its default values).
-fn bends_links(effect: &'static dyn Effect) -> bool {
+pub fn bends_links(effect: &'static dyn Effect) -> bool {
     let values = effect.params().iter().map(|p| p.default).collect();
     let mut probe = LinkBending {
         ei_n_m2: 1.0,

@@ -30,8 +30,8 @@ use crate::sim;
 mod arm;
 
 pub use arm::{
-    longest_step_s, stack, stacking, substeps_for, ArmPlant, ArmPoses, ARM_MAX_REFINEMENT,
-    ARM_MAX_STEP_S, ARM_STACKED, SYNTH_ARM_REFINEMENT,
+    bends_links, longest_step_s, stack, stacking, substeps_for, ArmPlant, ArmPoses,
+    ARM_MAX_REFINEMENT, ARM_MAX_STEP_S, ARM_STACKED, SYNTH_ARM_REFINEMENT,
 };
 
 /// One simulated channel of a run, named as the dataset's column.

@@ -855,3 +855,265 @@ fn arm_diagnose_refines_a_stribeck_joint_friction() {
         }
     }
 }
+
+/// A truth with joint friction of its own at j2 and at j5 (nothing at the others).
+const PER_JOINT_TRUTH: &str = "rope = \"dyneema2\"\nlaw = \"four_element\"\n\
+    [[effect]]\nname = \"joint_friction\"\njoints = [\"j2\"]\n\
+    [effect.params.coulomb_n_m]\nvalue = 6.0\n[effect.params.viscous_n_m_s]\nvalue = 1.0\n\
+    [[effect]]\nname = \"joint_friction\"\njoints = [\"j5\"]\n\
+    [effect.params.coulomb_n_m]\nvalue = 0.5\n[effect.params.viscous_n_m_s]\nvalue = 0.05\n";
+
+/// Two moves (j5 0.2 rad; j2 -0.1 rad with 8 kg), 3 s at 50 Hz, with `truth` hidden.
+fn two_joint_moves(dir: &Path, truth: &str) -> Dataset {
+    let mut opt = ArmMovesOptions::new(root().join(SCENARIO), 5);
+    opt.duration_s = 3.0;
+    opt.moves = vec![
+        ArmMove {
+            joint: "j5".into(),
+            move_rad: 0.2,
+            start_s: 0.5,
+            payload_kg: None,
+        },
+        ArmMove {
+            joint: "j2".into(),
+            move_rad: -0.1,
+            start_s: 0.5,
+            payload_kg: Some(8.0),
+        },
+    ];
+    let plan = arm_plan(&opt).unwrap();
+    let path = dir.join("per_joint");
+    arm_moves(
+        &Model::from_toml(truth, "truth.toml", &plan).unwrap(),
+        &plan,
+        &opt,
+    )
+    .unwrap()
+    .write(&path, "joint friction per joint")
+    .unwrap();
+    Dataset::load(&path).unwrap()
+}
+
+#[test]
+fn a_model_restricts_an_effect_to_joints() {
+    let dir = tempfile::tempdir().unwrap();
+    let ds = two_joint_moves(dir.path(), PER_JOINT_TRUTH);
+    let m = Model::from_toml(PER_JOINT_TRUTH, "truth.toml", &ds).unwrap();
+    assert_eq!(m.effects.len(), 2);
+    assert_eq!(
+        m.effects[1].joints.as_deref(),
+        Some(&["j5".to_string()][..])
+    );
+    // The fitted names carry the joints; the file round-trips them.
+    let names: Vec<String> = m.named_values().into_iter().map(|(n, _)| n).collect();
+    assert!(names.contains(&"coulomb_n_m@j2".to_string()), "{names:?}");
+    let back = Model::from_toml(&m.to_toml(""), "back.toml", &ds).unwrap();
+    assert_eq!(back.named_values(), m.named_values());
+    // Friction only at j2 turns j2 alone differently: the j5 move is simulated as
+    // with no friction at all, the j2 move is not.
+    let plant = plant_for(&ds, 1);
+    let none = Model::baseline(&ds).unwrap();
+    let at_j2 = Model::from_toml(
+        "[[effect]]\nname = \"joint_friction\"\njoints = [\"j2\"]\n[effect.params.coulomb_n_m]\nvalue = 6.0\n",
+        "j2.toml",
+        &ds,
+    )
+    .unwrap();
+    let sim = |m: &Model, r: usize| plant.simulate(&m.plant_params(r).unwrap(), r).unwrap();
+    let joint_of = |s: &longreach_ident::plant::Channels, j: &str| -> Vec<f64> {
+        let name = ArmQuantity::Joint.column(j);
+        s.get(&name).unwrap_or_else(|| panic!("no {name}")).to_vec()
+    };
+    let (a, b) = (sim(&none, 1), sim(&at_j2, 1));
+    let moved = joint_of(&a, "j2")
+        .iter()
+        .zip(joint_of(&b, "j2"))
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max);
+    assert!(moved > 1e-4, "6 N*m at j2 moves j2 by {moved} rad");
+    // On the j5 move, the same friction at every joint (j5's own among them) changes
+    // j5 far more than friction at j2 alone does (through the arm's coupling only).
+    let everywhere = Model::from_toml(
+        "[[effect]]\nname = \"joint_friction\"\n[effect.params.coulomb_n_m]\nvalue = 6.0\n",
+        "all.toml",
+        &ds,
+    )
+    .unwrap();
+    let j5_change = |m: &Model| {
+        joint_of(&sim(&none, 0), "j5")
+            .iter()
+            .zip(joint_of(&sim(m, 0), "j5"))
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max)
+    };
+    let (own, coupled) = (j5_change(&everywhere), j5_change(&at_j2));
+    assert!(
+        own > 10.0 * coupled,
+        "j5 moves by {own} rad with friction everywhere, {coupled} with it at j2 alone"
+    );
+    // Errors, each located and with its fix.
+    let bad = |text: &str, what: &str| {
+        let e = Model::from_toml(text, "m.toml", &ds)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(what), "{e}");
+        assert!(e.contains("m.toml"), "{e}");
+    };
+    bad(
+        "[[effect]]\nname = \"joint_friction\"\njoints = [\"j9\"]\n",
+        "joint `j9` is not driven",
+    );
+    bad(
+        "[[effect]]\nname = \"joint_friction\"\njoints = [\"j2\", \"j2\"]\n",
+        "listed twice",
+    );
+    bad(
+        "[[effect]]\nname = \"joint_friction\"\njoints = []\n",
+        "non-empty list",
+    );
+    bad(
+        "[[effect]]\nname = \"payload_mass\"\njoints = [\"j2\"]\n",
+        "not at joints",
+    );
+    bad(
+        "[[effect]]\nname = \"joint_friction\"\njoints = [\"j2\"]\n[[effect]]\nname = \"joint_friction\"\njoints = [\"j5\", \"j2\"]\n",
+        "given twice on j2",
+    );
+    bad(
+        "[[effect]]\nname = \"joint_friction\"\n[[effect]]\nname = \"joint_friction\"\njoints = [\"j5\"]\n",
+        "given twice on every joint",
+    );
+    bad(
+        "[[effect]]\nname = \"joint_friction\"\njoint = [\"j2\"]\n",
+        "unknown key `joint`",
+    );
+    // Not on the rig's data.
+    let sweep = Dataset::load(example("example_sweep_control")).unwrap();
+    let e = Model::from_toml(
+        "[[effect]]\nname = \"joint_friction\"\njoints = [\"j2\"]\n",
+        "m.toml",
+        &sweep,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("arm datasets"), "{e}");
+}
+
+#[test]
+fn arm_diagnose_gives_joint_friction_its_values_per_joint() {
+    use longreach_ident::analysis::{diagnose, prepared_at_step};
+    let dir = tempfile::tempdir().unwrap();
+    let ds = two_joint_moves(dir.path(), PER_JOINT_TRUTH);
+    let base = Model::baseline(&ds).unwrap();
+    let (prep, _) = prepared_at_step(&ds, &base).unwrap();
+    let (d, _, winner) = diagnose(&prep, &base).unwrap();
+    let floor = d.comparison.noise_floor_nrmse;
+    assert_eq!(d.missing_effects, ["joint_friction"], "{}", d.explanation);
+    let s = d
+        .joint_splits
+        .iter()
+        .find(|s| s.kept)
+        .unwrap_or_else(|| panic!("no kept split: {}", d.explanation));
+    // One value for both joints is a compromise far above the floor; per joint, the
+    // data are explained to it.
+    assert!(
+        s.nrmse_shared > 5.0 * floor,
+        "{} vs {floor}",
+        s.nrmse_shared
+    );
+    let after = d.nrmse_after.unwrap();
+    assert!(
+        after <= 1.5 * floor,
+        "{after} vs {floor}: {}",
+        d.explanation
+    );
+    let coulomb = |j: &str| {
+        let v = s.joints.iter().find(|v| v.joint == j).unwrap();
+        v.values.iter().find(|(n, _)| n == "coulomb_n_m").unwrap().1
+    };
+    assert!(
+        (coulomb("j2") / 6.0 - 1.0).abs() < 0.03,
+        "j2 {}",
+        coulomb("j2")
+    );
+    assert!(
+        (coulomb("j5") / 0.5 - 1.0).abs() < 0.03,
+        "j5 {}",
+        coulomb("j5")
+    );
+    // The written model holds the split and gives the same error.
+    let w = winner.unwrap();
+    let text = w.model.to_toml("");
+    assert!(text.contains("joints = [\"j2\"]"), "{text}");
+    let back = Model::from_toml(&text, "w.toml", &ds).unwrap();
+    assert_eq!(back.named_values(), w.model.named_values());
+}
+
+#[test]
+fn a_written_arm_scenario_simulates_as_the_model() {
+    use longreach_ident::arm_scenario::arm_scenario_text;
+    let dir = tempfile::tempdir().unwrap();
+    let ds = two_joint_moves(dir.path(), PER_JOINT_TRUTH);
+    // Every kind of value a model gives an arm: the ropes' k1, a rope-law effect on
+    // every pair, friction per joint (one of them as a table), an unknown payload.
+    let model_text = "[params.k1_scale]\nvalue = 0.93\n\
+        [[effect]]\nname = \"internal_damping\"\n[effect.params.c1_n_s]\nvalue = 800.0\n\
+        [[effect]]\nname = \"joint_friction\"\njoints = [\"j2\"]\n\
+        [effect.params.coulomb_n_m]\nvalue = 4.0\n[effect.params.viscous_n_m_s]\nvalue = 0.5\n\
+        [[effect]]\nname = \"joint_friction\"\njoints = [\"j5\", \"j1\"]\n\
+        [effect.params.coulomb_n_m]\nvalue = 1.0\n[effect.params.viscous_n_m_s]\nvalue = 0.1\n\
+        [effect.shape]\nrate_rad_s = [0.0, 0.02, 0.1]\ncoulomb_n_m = [2.0, 1.2, 1.0]\n\
+        [[effect]]\nname = \"payload_mass\"\n[effect.params.payload_mass_kg]\nvalue = 1.5\n";
+    let model = Model::from_toml(model_text, "m.toml", &ds).unwrap();
+    // The dataset with its arm replaced by the written scenario.
+    let copy = dir.path().join("copy");
+    arm_of(&ds).write(&copy, &ds.title).unwrap();
+    let arm_file = copy.join(&arm_of(&ds).scenario);
+    let text = arm_scenario_text(&ds, &model, &arm_file, "test").unwrap();
+    assert!(text.contains("k1_scale = 0.93"), "{text}");
+    std::fs::write(&arm_file, &text).unwrap();
+    let written = Dataset::load(&copy).unwrap();
+    let base = Model::baseline(&written).unwrap();
+    let (p_model, p_written) = (plant_for(&ds, 1), plant_for(&written, 1));
+    for r in 0..2 {
+        let a = p_model
+            .simulate(&model.plant_params(r).unwrap(), r)
+            .unwrap();
+        let b = p_written
+            .simulate(&base.plant_params(r).unwrap(), r)
+            .unwrap();
+        assert_eq!(a.0.len(), b.0.len());
+        for (x, y) in a.0.iter().zip(&b.0) {
+            let scale = x.values.iter().fold(1e-12, |m: f64, v| m.max(v.abs()));
+            let worst = x
+                .values
+                .iter()
+                .zip(&y.values)
+                .map(|(u, v)| (u - v).abs())
+                .fold(0.0, f64::max);
+            assert!(
+                worst <= 1e-9 * scale,
+                "run {r} {}: {worst} (scale {scale})",
+                x.name
+            );
+        }
+    }
+    // The model's friction differs from the scenario's nothing-at-all: the comparison
+    // above could fail.
+    let plain = p_model
+        .simulate(&Model::baseline(&ds).unwrap().plant_params(1).unwrap(), 1)
+        .unwrap();
+    let with = p_model
+        .simulate(&model.plant_params(1).unwrap(), 1)
+        .unwrap();
+    assert_ne!(plain, with);
+    // What a scenario cannot hold is refused, saying why.
+    let per_run = Model::from_toml(
+        "[params.k1_scale]\nvalue = 1.0\nper_run = true\nrun_values = [1.0, 0.9]\n",
+        "p.toml",
+        &ds,
+    )
+    .unwrap();
+    let e = arm_scenario_text(&ds, &per_run, &arm_file, "").unwrap_err();
+    assert!(e.contains("values per run"), "{e}");
+}
