@@ -326,15 +326,18 @@ fn arm_synth_compare_report() {
          [effect.params.viscous_n_m_s]\nvalue = 0.01\nfit = true\nlower = 0\nupper = 1e3\n",
     )
     .unwrap();
+    let fit_writing = |to: &Path| {
+        longreach(&[
+            "fit",
+            out.to_str().unwrap(),
+            "--model",
+            model.to_str().unwrap(),
+            "--write-scenario",
+            to.to_str().unwrap(),
+        ])
+    };
     let written = tmp.path().join("arm_fitted.toml");
-    let (ok, stdout, err) = longreach(&[
-        "fit",
-        out.to_str().unwrap(),
-        "--model",
-        model.to_str().unwrap(),
-        "--write-scenario",
-        written.to_str().unwrap(),
-    ]);
+    let (ok, stdout, err) = fit_writing(&written);
     assert!(ok, "{err}");
     assert!(stdout.contains("wrote the arm scenario"), "{stdout}");
     let text = std::fs::read_to_string(&written).unwrap();
@@ -342,15 +345,7 @@ fn arm_synth_compare_report() {
         text.contains("name = \"joint_friction\"") && text.contains("joints = [\"j5\"]"),
         "{text}"
     );
-    let arm = out.join("arm.toml");
-    let (ok, _, err) = longreach(&[
-        "fit",
-        out.to_str().unwrap(),
-        "--model",
-        model.to_str().unwrap(),
-        "--write-scenario",
-        arm.to_str().unwrap(),
-    ]);
+    let (ok, _, err) = fit_writing(&out.join("arm.toml"));
     assert!(ok, "{err}");
     let (ok, _, err) = longreach(&[
         "compare",

@@ -7,8 +7,9 @@ use serde::Serialize;
 
 use super::fit::fit_simulated;
 use super::{
-    compare, describe, fit_model, fit_model_from, refine_shape, scan_coordinates, screen_model,
-    searched_starts, signatures, split_per_joint, Comparison, Fitted, JointSplit, Prepared,
+    arm_dataset, arm_findings, compare, compare_arm, describe, describe_findings, fit_model,
+    fit_model_from, refine_shape, scan_coordinates, screen_model, searched_starts, signatures,
+    simulate_arm, split_per_joint, ArmFinding, Comparison, Fitted, JointSplit, Prepared,
     RunResonance, ShapeRefinement, Signature, Start, Where,
 };
 use crate::error::IdentError;
@@ -101,6 +102,11 @@ pub struct Diagnosis {
     /// An arm effect's values split per joint ([`split_per_joint`]): the best
     /// candidate's, when its shared values leave the data well above the floor.
     pub joint_splits: Vec<JointSplit>,
+    /// On an arm, what its sensors show against the baseline in the arm's terms
+    /// (vibration figures, encoder offsets; [`arm_findings`]), largest first.
+    pub arm_findings: Vec<ArmFinding>,
+    /// The same against the model with the named effects (else the lead's).
+    pub arm_findings_after: Vec<ArmFinding>,
     /// An arm's simulation step, s (the longest of any run at the prepared data's
     /// refinement, [`Prepared::with_arm_refinement`]); `None` for the rig and specimens.
     pub simulation_step_s: Option<f64>,
@@ -1096,6 +1102,25 @@ pub fn diagnose(
             None => signatures(prep, &base.model, &base.sims, &cmp),
         }
     };
+    // On an arm, the evidence in the arm's own terms: the baseline's, and what the
+    // named effects' model (else the lead's) still leaves.
+    let arm = if at_floor {
+        ArmEvidence::default()
+    } else {
+        let after = winner.as_ref().or(lead_fit.as_ref());
+        ArmEvidence {
+            is_arm: arm_dataset(prep.ds).is_some(),
+            base: arm_evidence_of(prep, &base.model),
+            after: after
+                .map(|f| arm_evidence_of(prep, &f.model))
+                .unwrap_or_default(),
+            after_of: match (&winner, &lead) {
+                (Some(_), _) => named.join(" and "),
+                (None, Some(l)) => l.effects.join(" and "),
+                _ => String::new(),
+            },
+        }
+    };
     let pair_list: Vec<Candidate> = pairs.iter().map(|c| c.0.clone()).collect();
     let explanation = explain(
         prep,
@@ -1109,6 +1134,7 @@ pub fn diagnose(
         &sigs,
         &refinements,
         &notes,
+        &arm,
     );
     let diag = Diagnosis {
         dataset: prep.ds.title.clone(),
@@ -1150,6 +1176,8 @@ pub fn diagnose(
         signatures: sigs,
         refinements,
         joint_splits,
+        arm_findings: arm.base,
+        arm_findings_after: arm.after,
         simulation_step_s: match &prep.ds.kind {
             crate::DatasetKind::ArmMoves(am) => {
                 Some(crate::plant::longest_step_s(am, prep.arm_refinement))
@@ -1172,6 +1200,7 @@ fn explain(
     sigs: &[Signature],
     refinements: &[ShapeRefinement],
     notes: &[String],
+    arm: &ArmEvidence,
 ) -> String {
     let mut s = String::new();
     for n in notes {
@@ -1209,6 +1238,10 @@ fn explain(
             )),
         }
     }
+    s.push_str(&describe_findings(
+        "What the arm's sensors show against the baseline: ",
+        &arm.base,
+    ));
     // Evidence from the data, by kind.
     if prep.kind == DataKind::SineSweep {
         let mut res: Vec<&RunResonance> = cmp
@@ -1273,11 +1306,12 @@ fn explain(
             ));
             if let Some(second) = cands.get(1) {
                 s.push_str(&format!(
-                    "the next best, {}, explains {:.0}%.",
+                    "the next best, {}, explains {:.0}%. ",
                     second.effect,
                     100.0 * second.explained.clamp(0.0, 1.0)
                 ));
             }
+            s.push_str(&arm.after_words());
         }
         (Some(_), Some(best)) => {
             let pair = pairs.first().map_or(f64::NAN, |p| p.nrmse);
@@ -1298,6 +1332,7 @@ fn explain(
                 ));
             }
             s.push_str(". ");
+            s.push_str(&arm.after_words());
         }
         (_, best) => {
             if let Some(l) = lead {
@@ -1334,10 +1369,57 @@ fn explain(
             } else {
                 s.push_str("No registered effect applies to this kind of data. ");
             }
-            s.push_str(&describe(sigs));
+            if arm.is_arm {
+                s.push_str(&arm.after_words());
+            } else {
+                s.push_str(&describe(sigs));
+            }
         }
     }
     s
+}
+
+/// An arm's evidence for the explanation ([`arm_findings`]).
+#[derive(Debug, Default)]
+struct ArmEvidence {
+    /// The data are an arm's.
+    is_arm: bool,
+    /// Against the baseline.
+    base: Vec<ArmFinding>,
+    /// Against the model with `after_of`.
+    after: Vec<ArmFinding>,
+    /// The effects of that model (the named, else the lead's; empty: none).
+    after_of: String,
+}
+
+impl ArmEvidence {
+    /// What the model with the named (or lead) effects still leaves, in words.
+    fn after_words(&self) -> String {
+        if !self.is_arm || self.after_of.is_empty() {
+            return String::new();
+        }
+        if self.after.is_empty() {
+            return format!(
+                "With {}, the arm's vibration figures and encoder offsets agree with the measurement within their tolerances. ",
+                self.after_of
+            );
+        }
+        describe_findings(&format!("With {}, still: ", self.after_of), &self.after)
+    }
+}
+
+/// [`arm_findings`] of `model` on `prep`'s arm dataset (empty for other data, or when
+/// the simulation fails: the evidence is an aid, not the diagnosis).
+fn arm_evidence_of(prep: &Prepared<'_>, model: &Model) -> Vec<ArmFinding> {
+    let Some(am) = arm_dataset(prep.ds) else {
+        return Vec::new();
+    };
+    let Ok(sims) = simulate_arm(prep.ds, model, prep.arm_refinement) else {
+        return Vec::new();
+    };
+    compare_arm(prep.ds, &sims)
+        .map(|c| arm_findings(am, &c, &sims))
+        .unwrap_or_default()
 }
 
 /// `x` to three significant digits (a knot: 0.0153 rad/s, 424 N), without an

@@ -15,6 +15,9 @@
 //! * `arm.rs`: a model measured against an arm dataset ([`compare_arm`]: every channel
 //!   of every run against its noise floor, where the error concentrates, the vibration
 //!   figures of every move);
+//! * `arm_evidence.rs`: what an arm's sensors show against a model in the arm's terms
+//!   (vibration figures per joint over its moves, encoder offsets at rest and settled;
+//!   [`arm_findings`]);
 //! * `diagnose.rs`: the baseline and every applicable registered effect fitted, ranked,
 //!   and the missing effect named when the evidence is decisive ([`diagnose`]);
 //! * `joints.rs`: an arm effect's values split per joint (one use per moved joint,
@@ -25,6 +28,7 @@
 //!   produce it, its size and the share of the excess error it removes ([`signatures`]).
 
 mod arm;
+mod arm_evidence;
 mod compare;
 mod diagnose;
 mod fit;
@@ -38,6 +42,7 @@ pub use arm::{
     simulate_arm_poses, ArmComparison, ArmStep, ArmWhere, ChannelError, Figures, MoveFigures,
     StepTrial, ARM_MAX_REFINEMENT, ARM_STEP_TOLERANCE_SIGMA, ARM_WINDOW_S,
 };
+pub use arm_evidence::{arm_findings, describe_findings, ArmFinding, FINDINGS_TOLD, OFFSET_COUNTS};
 pub use compare::{
     compare, Comparison, FrequencyError, ResidualChecks, RunChannelError, RunError, RunResonance,
     Where,

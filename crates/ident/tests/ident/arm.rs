@@ -788,33 +788,7 @@ fn arm_diagnose_refines_a_stribeck_joint_friction() {
         hidden.0, hidden.1
     );
     let dir = tempfile::tempdir().unwrap();
-    let mut opt = ArmMovesOptions::new(root().join(SCENARIO), 5);
-    opt.duration_s = 4.0;
-    opt.moves = vec![
-        ArmMove {
-            joint: "j5".into(),
-            move_rad: 0.2,
-            start_s: 0.5,
-            payload_kg: None,
-        },
-        ArmMove {
-            joint: "j2".into(),
-            move_rad: -0.1,
-            start_s: 0.5,
-            payload_kg: Some(8.0),
-        },
-    ];
-    let plan = arm_plan(&opt).unwrap();
-    let path = dir.path().join("stribeck");
-    arm_moves(
-        &Model::from_toml(&truth, "truth.toml", &plan).unwrap(),
-        &plan,
-        &opt,
-    )
-    .unwrap()
-    .write(&path, "stribeck joint friction")
-    .unwrap();
-    let ds = Dataset::load(&path).unwrap();
+    let ds = two_joint_moves(dir.path(), &truth, 0.5, 4.0);
     let base = Model::baseline(&ds).unwrap();
     let (prep, _) = prepared_at_step(&ds, &base).unwrap();
     let (d, _, _) = diagnose(&prep, &base).unwrap();
@@ -863,21 +837,22 @@ const PER_JOINT_TRUTH: &str = "rope = \"dyneema2\"\nlaw = \"four_element\"\n\
     [[effect]]\nname = \"joint_friction\"\njoints = [\"j5\"]\n\
     [effect.params.coulomb_n_m]\nvalue = 0.5\n[effect.params.viscous_n_m_s]\nvalue = 0.05\n";
 
-/// Two moves (j5 0.2 rad; j2 -0.1 rad with 8 kg), 3 s at 50 Hz, with `truth` hidden.
-fn two_joint_moves(dir: &Path, truth: &str) -> Dataset {
+/// Two moves (j5 0.2 rad; j2 -0.1 rad with 8 kg) from `start_s` in runs of
+/// `duration_s` at 50 Hz, with `truth` hidden.
+fn two_joint_moves(dir: &Path, truth: &str, start_s: f64, duration_s: f64) -> Dataset {
     let mut opt = ArmMovesOptions::new(root().join(SCENARIO), 5);
-    opt.duration_s = 3.0;
+    opt.duration_s = duration_s;
     opt.moves = vec![
         ArmMove {
             joint: "j5".into(),
             move_rad: 0.2,
-            start_s: 0.5,
+            start_s,
             payload_kg: None,
         },
         ArmMove {
             joint: "j2".into(),
             move_rad: -0.1,
-            start_s: 0.5,
+            start_s,
             payload_kg: Some(8.0),
         },
     ];
@@ -897,7 +872,7 @@ fn two_joint_moves(dir: &Path, truth: &str) -> Dataset {
 #[test]
 fn a_model_restricts_an_effect_to_joints() {
     let dir = tempfile::tempdir().unwrap();
-    let ds = two_joint_moves(dir.path(), PER_JOINT_TRUTH);
+    let ds = two_joint_moves(dir.path(), PER_JOINT_TRUTH, 0.5, 3.0);
     let m = Model::from_toml(PER_JOINT_TRUTH, "truth.toml", &ds).unwrap();
     assert_eq!(m.effects.len(), 2);
     assert_eq!(
@@ -1003,7 +978,7 @@ fn a_model_restricts_an_effect_to_joints() {
 fn arm_diagnose_gives_joint_friction_its_values_per_joint() {
     use longreach_ident::analysis::{diagnose, prepared_at_step};
     let dir = tempfile::tempdir().unwrap();
-    let ds = two_joint_moves(dir.path(), PER_JOINT_TRUTH);
+    let ds = two_joint_moves(dir.path(), PER_JOINT_TRUTH, 0.2, 2.2);
     let base = Model::baseline(&ds).unwrap();
     let (prep, _) = prepared_at_step(&ds, &base).unwrap();
     let (d, _, winner) = diagnose(&prep, &base).unwrap();
@@ -1053,7 +1028,7 @@ fn arm_diagnose_gives_joint_friction_its_values_per_joint() {
 fn a_written_arm_scenario_simulates_as_the_model() {
     use longreach_ident::arm_scenario::arm_scenario_text;
     let dir = tempfile::tempdir().unwrap();
-    let ds = two_joint_moves(dir.path(), PER_JOINT_TRUTH);
+    let ds = two_joint_moves(dir.path(), PER_JOINT_TRUTH, 0.5, 3.0);
     // Every kind of value a model gives an arm: the ropes' k1, a rope-law effect on
     // every pair, friction per joint (one of them as a table), an unknown payload.
     let model_text = "[params.k1_scale]\nvalue = 0.93\n\
@@ -1116,4 +1091,61 @@ fn a_written_arm_scenario_simulates_as_the_model() {
     .unwrap();
     let e = arm_scenario_text(&ds, &per_run, &arm_file, "").unwrap_err();
     assert!(e.contains("values per run"), "{e}");
+}
+
+/// The arm's evidence (`arm_findings`) of a model against data: nothing on a control,
+/// nothing once the hidden effect is in the model; a hidden joint friction shows where
+/// j5 settles and how it moves; an unknown payload shows at rest, before any move.
+#[test]
+fn arm_findings_say_what_the_arm_shows() {
+    use longreach_ident::analysis::{arm_findings, compare_arm, simulate_arm, ARM_MAX_REFINEMENT};
+    let findings = |ds: &Dataset, m: &Model| {
+        let sims = simulate_arm(ds, m, ARM_MAX_REFINEMENT).unwrap();
+        let c = compare_arm(ds, &sims).unwrap();
+        arm_findings(arm_of(ds), &c, &sims)
+    };
+    let control = Dataset::load(example("example_arm_control")).unwrap();
+    let f = findings(&control, &Model::baseline(&control).unwrap());
+    assert!(
+        f.is_empty(),
+        "a control shows {:?}",
+        f.iter().map(|f| &f.sentence).collect::<Vec<_>>()
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let friction = "[[effect]]\nname = \"joint_friction\"\n\
+        [effect.params.coulomb_n_m]\nvalue = 1.0\n[effect.params.viscous_n_m_s]\nvalue = 0.1\n";
+    let ds = j5_move(dir.path(), Some(friction));
+    let f = findings(&ds, &Model::baseline(&ds).unwrap());
+    let settled = f
+        .iter()
+        .find(|f| f.joint == "j5" && f.kind == "settled_offset_rad")
+        .unwrap_or_else(|| panic!("{f:?}"));
+    // friction holds j5 short of where the frictionless model settles: at least two
+    // counts, and the sentence says it in mrad
+    assert!(settled.measured.abs() > 2e-4, "{settled:?}");
+    assert!(settled.sentence.contains("mrad"), "{}", settled.sentence);
+    assert!(
+        f.iter().all(|f| f.kind != "rest_offset_rad"),
+        "friction does not show at rest: {f:?}"
+    );
+    let truth = Model::from_toml(friction, "t.toml", &ds).unwrap();
+    let f = findings(&ds, &truth);
+    assert!(
+        f.is_empty(),
+        "with the truth: {:?}",
+        f.iter().map(|f| &f.sentence).collect::<Vec<_>>()
+    );
+    // An unknown payload sags the arm before it moves.
+    let payload =
+        "[[effect]]\nname = \"payload_mass\"\n[effect.params.payload_mass_kg]\nvalue = 3.0\n";
+    let dir = tempfile::tempdir().unwrap();
+    let ds = j5_move(dir.path(), Some(payload));
+    let f = findings(&ds, &Model::baseline(&ds).unwrap());
+    let rest: Vec<_> = f.iter().filter(|f| f.kind == "rest_offset_rad").collect();
+    assert!(!rest.is_empty(), "{f:?}");
+    assert!(
+        rest.iter().any(|f| f.measured.abs() > 1e-3),
+        "3 kg sags a joint by more than 1 mrad: {:?}",
+        rest.iter().map(|f| &f.sentence).collect::<Vec<_>>()
+    );
 }
