@@ -7,9 +7,11 @@
 //! its moves, a finding when the measurement and the model differ by more than the
 //! figure's tolerance:
 //!
-//! - residual vibration frequency: by more than 5%;
+//! - residual vibration frequency: by more than 5% and a quarter cycle over the window
+//!   it is measured in (the time after the command stops);
 //! - its damping ratio: by more than a factor 1.25 and 0.003;
-//! - 2% settling time: by more than 10% and two samples (or one of them never settles);
+//! - 2% settling time: by more than 10% and two samples (one that never settles within
+//!   the run counts as settling at its end, at the latest);
 //! - overshoot: by more than 1 point of the move and a fifth of the measured one;
 //! - peak and minimum rope tension: by more than 3%.
 //!
@@ -65,25 +67,43 @@ pub struct ArmFinding {
 /// (with the difference in tolerances).
 type Judged = Option<(f64, f64, f64)>;
 
-fn judge(kind: &str, m: &Figures, s: &Figures, dt_s: f64) -> Judged {
+/// How a move's figures can be told apart: the sample interval, the time from the
+/// move's start to the end of the run (a figure that never settles settles there at
+/// the latest), and the time after the command stops (the window the residual
+/// vibration is measured over: its frequency is known to a quarter cycle over it).
+#[derive(Debug, Clone, Copy)]
+struct Resolution {
+    dt_s: f64,
+    horizon_s: f64,
+    settle_window_s: f64,
+}
+
+fn judge(kind: &str, m: &Figures, s: &Figures, res: Resolution) -> Judged {
     let pair = |a: Option<f64>, b: Option<f64>| a.zip(b);
     match kind {
         "vibration_hz" => pair(m.vibration_hz, s.vibration_hz)
             .filter(|(a, _)| *a > 0.0)
-            .map(|(a, b)| (a, b, (b / a - 1.0).abs() / 0.05)),
+            .map(|(a, b)| {
+                let tol = (0.05 * a).max(0.25 / res.settle_window_s.max(res.dt_s));
+                (a, b, (b - a).abs() / tol)
+            }),
         "damping_ratio" => pair(m.damping_ratio, s.damping_ratio)
             .filter(|(a, b)| *a > 0.0 && *b > 0.0)
             .map(|(a, b)| {
                 let w = ((b / a).ln().abs() / 1.25f64.ln()).min((b - a).abs() / 0.003);
                 (a, b, w)
             }),
-        "settling_time_s" => match (m.settling_time_s, s.settling_time_s) {
-            (Some(a), Some(b)) => Some((a, b, (b - a).abs() / (0.1 * a).max(2.0 * dt_s))),
-            // one settles, the other never does within the run
-            (Some(a), None) => Some((a, f64::INFINITY, 10.0)),
-            (None, Some(b)) => Some((f64::INFINITY, b, 10.0)),
-            (None, None) => None,
-        },
+        "settling_time_s" => {
+            // (one that never settles within the run settles at its end at the latest:
+            // judged against that, a settling close to the end is not told apart)
+            let at = |x: Option<f64>| x.unwrap_or(res.horizon_s);
+            let (a, b) = (at(m.settling_time_s), at(s.settling_time_s));
+            (m.settling_time_s.is_some() || s.settling_time_s.is_some()).then(|| {
+                let w = (b - a).abs() / (0.1 * a).max(2.0 * res.dt_s);
+                let shown = |x: Option<f64>, v: f64| if x.is_some() { v } else { f64::INFINITY };
+                (shown(m.settling_time_s, a), shown(s.settling_time_s, b), w)
+            })
+        }
         "overshoot_pct" => pair(m.overshoot_pct, s.overshoot_pct)
             .map(|(a, b)| (a, b, (b - a).abs() / (0.2 * a.abs()).max(1.0))),
         "peak_tension_n" => pair(m.peak_tension_n, s.peak_tension_n)
@@ -135,16 +155,14 @@ fn figure_sentence(kind: &str, m: f64, s: f64, where_: &str) -> String {
     };
     match kind {
         "vibration_hz" => format!(
-            "residual vibration at {} Hz measured against {} Hz in the model {where_}: the arm is {} than the model",
+            "residual vibration at {} Hz measured against {} Hz in the model {where_}",
             num(m, 2),
-            num(s, 2),
-            if m < s { "softer or heavier" } else { "stiffer or lighter" }
+            num(s, 2)
         ),
         "damping_ratio" => format!(
-            "the residual vibration dies out with a damping ratio of {} measured against {} in the model {where_}: the arm dissipates {} than the model",
+            "the residual vibration dies out with a damping ratio of {} measured against {} in the model {where_}",
             num(m, 3),
-            num(s, 3),
-            if m > s { "more" } else { "less" }
+            num(s, 3)
         ),
         "settling_time_s" => {
             let t = |x: f64| {
@@ -178,6 +196,22 @@ fn figure_sentence(kind: &str, m: f64, s: f64, where_: &str) -> String {
     }
 }
 
+/// The [`Resolution`] of the move of joint `k` in run `run` (`None`: no such run, or
+/// the joint's command never changes in it).
+fn resolution(am: &ArmMovesDataset, run: &str, k: usize) -> Option<Resolution> {
+    let r = am.runs.iter().find(|r| r.name == run)?;
+    let c = r.command_rad.get(k)?;
+    let first = c.iter().position(|&x| (x - c[0]).abs() > 0.0)?;
+    let last = c.iter().rposition(|&x| (x - c[c.len() - 1]).abs() > 0.0)?;
+    let t = |i: usize| r.time_s.get(i).copied().unwrap_or(0.0);
+    let end = *r.time_s.last()?;
+    Some(Resolution {
+        dt_s: r.dt_s(),
+        horizon_s: end - t(first.saturating_sub(1)),
+        settle_window_s: end - t(last + 1),
+    })
+}
+
 /// Mean of measured minus model of channel `name` of run `r` over samples `a..b`.
 fn offset(
     am: &ArmMovesDataset,
@@ -203,15 +237,16 @@ pub fn arm_findings(
     sims: &[Channels],
 ) -> Vec<ArmFinding> {
     let mut out = Vec::new();
-    let dt = am.runs.first().map_or(0.02, |r| r.dt_s());
     // Figures, per joint over its moves.
-    for joint in &am.joints {
+    for (k, joint) in am.joints.iter().enumerate() {
         let moves: Vec<_> = cmp.figures.iter().filter(|f| &f.joint == joint).collect();
         for kind in FIGURES {
             let judged: Vec<(String, f64, f64, f64)> = moves
                 .iter()
                 .filter_map(|f| {
-                    judge(kind, &f.measured, &f.model, dt).map(|(a, b, w)| (f.run.clone(), a, b, w))
+                    let res = resolution(am, &f.run, k)?;
+                    judge(kind, &f.measured, &f.model, res)
+                        .map(|(a, b, w)| (f.run.clone(), a, b, w))
                 })
                 .collect();
             let of = judged.len();
