@@ -355,6 +355,146 @@ fn write_arm_report(dir: &Path, ds: &Dataset, c: &ArmComparison, sims: &[Channel
     Ok(())
 }
 
+/// The arm's part of `diagnose --report`: the arm's findings against the baseline and
+/// against the named model (else the lead's), the values per joint of a split effect,
+/// and one picture per run (`arm_diagnosis_<run>.png`) of every driven joint measured,
+/// with the baseline and the named model; returns the markdown.
+pub fn arm_diagnosis_report(
+    dir: &Path,
+    ds: &Dataset,
+    d: &analysis::Diagnosis,
+    base: &Model,
+    winner: Option<&Model>,
+    refinement: usize,
+) -> Result<String> {
+    let DatasetKind::ArmMoves(am) = &ds.kind else {
+        bail!("not an arm dataset");
+    };
+    crate::output::output_dir(dir, "--report")?;
+    let mut md = String::from("\n## The arm\n\n");
+    let table = |md: &mut String, title: &str, f: &[analysis::ArmFinding]| {
+        md.push_str(&format!("### {title}\n\n"));
+        if f.is_empty() {
+            md.push_str(
+                "Nothing beyond the tolerances (docs/models.md, \"The arm's evidence\").\n\n",
+            );
+            return;
+        }
+        md.push_str(
+            "| joint | what | measured | model | runs | finding |\n|---|---|---|---|---|---|\n",
+        );
+        for x in f {
+            md.push_str(&format!(
+                "| {} | {} | {:.4} | {:.4} | {} of {} | {} |\n",
+                x.joint,
+                x.kind,
+                x.measured,
+                x.model,
+                x.runs.len(),
+                x.of_runs,
+                x.sentence
+            ));
+        }
+        md.push('\n');
+    };
+    table(
+        &mut md,
+        "What the sensors show against the baseline",
+        &d.arm_findings,
+    );
+    let after_of = if d.missing_effects.is_empty() {
+        d.lead.as_ref().map(|l| l.effects.join(" + "))
+    } else {
+        Some(d.missing_effects.join(" + "))
+    };
+    if let Some(of) = &after_of {
+        table(
+            &mut md,
+            &format!("Against the model with {of}"),
+            &d.arm_findings_after,
+        );
+    }
+    for s in &d.joint_splits {
+        md.push_str(&format!(
+            "### {} per joint ({}; NRMSE {:.4} against {:.4} with one value, BIC improvement {:.1})\n\n| joints | parameter | value | 95% interval |\n|---|---|---|---|\n",
+            s.effect,
+            if s.kept { "kept" } else { "not kept" },
+            s.nrmse,
+            s.nrmse_shared,
+            s.score
+        ));
+        for j in &s.joints {
+            for ((name, v), [lo, hi]) in j.values.iter().zip(&j.interval_95) {
+                md.push_str(&format!(
+                    "| {} | {name} | {v:.6} | [{lo:.6}, {hi:.6}] |\n",
+                    j.joint
+                ));
+            }
+        }
+        md.push('\n');
+    }
+    let sims = analysis::simulate_arm(ds, base, refinement).map_err(|e| anyhow!("{e}"))?;
+    let after = match winner {
+        Some(m) => Some(analysis::simulate_arm(ds, m, refinement).map_err(|e| anyhow!("{e}"))?),
+        None => None,
+    };
+    for (r, run) in am.runs.iter().enumerate() {
+        let mut panels = Vec::new();
+        for (k, joint) in am.joints.iter().enumerate() {
+            let Some(ch) = run.angle_channel(k).map(|i| &run.channels[i]) else {
+                continue;
+            };
+            let mut series = vec![Series {
+                label: format!("{} measured", ch.name),
+                x: run.time_s.clone(),
+                y: ch.values.clone(),
+                style: Style::Line,
+                color: 0,
+            }];
+            if let Some(y) = sims.get(r).and_then(|s| s.get(&ch.name)) {
+                series.push(Series {
+                    label: "baseline".into(),
+                    x: run.time_s.clone(),
+                    y: y.to_vec(),
+                    style: Style::DashedLine,
+                    color: 1,
+                });
+            }
+            if let Some(y) = after
+                .as_ref()
+                .and_then(|a| a.get(r))
+                .and_then(|s| s.get(&ch.name))
+            {
+                series.push(Series {
+                    label: format!("with {}", d.missing_effects.join(" + ")),
+                    x: run.time_s.clone(),
+                    y: y.to_vec(),
+                    style: Style::Line,
+                    color: 2,
+                });
+            }
+            panels.push(Panel {
+                y_label: format!("{joint} [rad]"),
+                series,
+                y_range: None,
+                log_y: false,
+            });
+        }
+        let fig = Figure {
+            title: format!("{} {}: measured, baseline, named model", ds.title, run.name),
+            x_label: "time [s]".into(),
+            log_x: false,
+            height_px: longreach_plot::min_height_px(panels.len()).max(600),
+            panels,
+            width_px: 1000,
+        };
+        let name = format!("arm_diagnosis_{}.png", run.name);
+        write_atomic_with(&dir.join(&name), |p| Ok(write_png(&fig, p)?))?;
+        md.push_str(&format!("![{name}]({name})\n"));
+    }
+    Ok(md)
+}
+
 /// `--move JOINT:RAD[:PAYLOAD_KG]`.
 pub fn parse_move(s: &str, start_s: f64) -> Result<ArmMove> {
     let parts: Vec<&str> = s.split(':').collect();

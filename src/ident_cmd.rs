@@ -513,7 +513,7 @@ pub fn run_compare(a: &CompareArgs) -> Result<ExitCode> {
         write_json(p, &c)?;
     }
     if let Some(dir) = &a.report {
-        write_report(dir, &prep, &c, &sims, None)?;
+        write_report(dir, &prep, &c, &sims, None, None)?;
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -713,12 +713,29 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
             Some(w) => Some(analysis::compare(&prep, &w.model, &w.sims).map_err(message)?),
             None => None,
         };
+        // An arm's part: what its sensors show, the values per joint and every joint
+        // measured against the baseline and the named model (the compared channel is
+        // every channel stacked, which says little in a picture).
+        let arm_md = match &ds.kind {
+            longreach_ident::DatasetKind::ArmMoves(_) => {
+                Some(crate::arm_ident_cmd::arm_diagnosis_report(
+                    dir,
+                    &ds,
+                    &d,
+                    &base.model,
+                    winner.as_ref().map(|w| &w.model),
+                    prep.arm_refinement,
+                )?)
+            }
+            _ => None,
+        };
         write_report(
             dir,
             &prep,
             &d.comparison,
             &base.sims,
             Some((&d, &m.sims, after.as_ref())),
+            arm_md.as_deref(),
         )?;
     }
     Ok(ExitCode::SUCCESS)
@@ -878,6 +895,7 @@ fn write_report(
         &Vec<Vec<f64>>,
         Option<&analysis::Comparison>,
     )>,
+    arm_md: Option<&str>,
 ) -> Result<()> {
     crate::output::output_dir(dir, "--report")?;
     let mut md = format!("# {} — model vs measurement\n\n", c.dataset);
@@ -993,6 +1011,9 @@ fn write_report(
                 ));
             }
         }
+    }
+    if let Some(a) = arm_md {
+        md.push_str(a);
     }
     md.push_str("\n## Pictures\n\n");
     // Bode per run (sweeps)

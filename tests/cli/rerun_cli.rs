@@ -765,13 +765,24 @@ fn diagnose_on_an_arm_dataset_records_the_arms_the_winner_and_the_ranking() {
         data.to_str().unwrap(),
     ]));
     let rrd = dir.path().join("d.rrd");
+    let rep = dir.path().join("rep");
     let out = ok(&longreach(&[
         "diagnose",
         data.to_str().unwrap(),
         "--rerun",
         &format!("save:{}", rrd.display()),
+        "--report",
+        rep.to_str().unwrap(),
     ]));
     assert!(out.contains("missing effect: joint_friction"), "{out}");
+    // The report's arm part: what the sensors show, and every joint measured with the
+    // baseline and the named model.
+    let md = std::fs::read_to_string(rep.join("report.md")).unwrap();
+    assert!(
+        md.contains("## The arm") && md.contains("Against the model with joint_friction"),
+        "{md}"
+    );
+    assert!(rep.join("arm_diagnosis_move_01.png").is_file());
     let Some(s) = read_back(&rrd) else { return };
     let ranking = entity(&s, "/diagnose/ranking")["text"].as_str().unwrap();
     assert!(ranking.contains("| 1 | joint_friction |"), "{ranking}");
