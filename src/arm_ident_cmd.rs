@@ -12,7 +12,7 @@ use longreach_ident::analysis::{self, ArmComparison, Figures};
 use longreach_ident::model::Model;
 use longreach_ident::plant::{ArmPoses, Channels};
 use longreach_ident::synth::{self, ArmMove, ArmMovesOptions};
-use longreach_ident::{Dataset, DatasetKind};
+use longreach_ident::{ArmMovesDataset, Dataset, DatasetKind};
 use longreach_plot::{write_png, Figure, Panel, Series, Style};
 
 use crate::output::{write_atomic, write_atomic_with};
@@ -308,49 +308,13 @@ fn write_arm_report(dir: &Path, ds: &Dataset, c: &ArmComparison, sims: &[Channel
         }
     }
     md.push_str("\n## Pictures\n\n");
-    for (run, sim) in am.runs.iter().zip(sims) {
-        let mut panels = Vec::new();
-        for (k, joint) in am.joints.iter().enumerate() {
-            let Some(ch) = run.angle_channel(k).map(|i| &run.channels[i]) else {
-                continue;
-            };
-            let Some(model) = sim.get(&ch.name) else {
-                continue;
-            };
-            panels.push(Panel {
-                y_label: format!("{joint} [rad]"),
-                series: vec![
-                    Series {
-                        label: format!("{} measured", ch.name),
-                        x: run.time_s.clone(),
-                        y: ch.values.clone(),
-                        style: Style::Line,
-                        color: 0,
-                    },
-                    Series {
-                        label: "model".into(),
-                        x: run.time_s.clone(),
-                        y: model.to_vec(),
-                        style: Style::DashedLine,
-                        color: 1,
-                    },
-                ],
-                y_range: None,
-                log_y: false,
-            });
-        }
-        let fig = Figure {
-            title: format!("{} {}: measured vs model", c.dataset, run.name),
-            x_label: "time [s]".into(),
-            log_x: false,
-            height_px: longreach_plot::min_height_px(panels.len()).max(600),
-            panels,
-            width_px: 1000,
-        };
-        let name = format!("arm_{}.png", run.name);
-        write_atomic_with(&dir.join(&name), |p| Ok(write_png(&fig, p)?))?;
-        md.push_str(&format!("![{name}]({name})\n"));
-    }
+    md.push_str(&joint_pictures(
+        dir,
+        am,
+        &format!("{}: measured vs model", c.dataset),
+        "arm",
+        &[("model".into(), sims)],
+    )?);
     write_atomic(&dir.join("report.md"), md.as_bytes())?;
     Ok(())
 }
@@ -438,6 +402,34 @@ pub fn arm_diagnosis_report(
         Some(m) => Some(analysis::simulate_arm(ds, m, refinement).map_err(|e| anyhow!("{e}"))?),
         None => None,
     };
+    let mut models = vec![("baseline".to_string(), sims.as_slice())];
+    if let Some(a) = &after {
+        models.push((
+            format!("with {}", d.missing_effects.join(" + ")),
+            a.as_slice(),
+        ));
+    }
+    md.push_str(&joint_pictures(
+        dir,
+        am,
+        &format!("{}: measured, baseline, named model", ds.title),
+        "arm_diagnosis",
+        &models,
+    )?);
+    Ok(md)
+}
+
+/// One picture per run, `{prefix}_{run}.png`, a panel per driven joint: its angle
+/// measured (the joint encoder, else the motor's) and as each of `models` (label, the
+/// channels of every run) simulated it; returns the markdown that shows them.
+fn joint_pictures(
+    dir: &Path,
+    am: &ArmMovesDataset,
+    title: &str,
+    prefix: &str,
+    models: &[(String, &[Channels])],
+) -> Result<String> {
+    let mut md = String::new();
     for (r, run) in am.runs.iter().enumerate() {
         let mut panels = Vec::new();
         for (k, joint) in am.joints.iter().enumerate() {
@@ -451,27 +443,20 @@ pub fn arm_diagnosis_report(
                 style: Style::Line,
                 color: 0,
             }];
-            if let Some(y) = sims.get(r).and_then(|s| s.get(&ch.name)) {
-                series.push(Series {
-                    label: "baseline".into(),
-                    x: run.time_s.clone(),
-                    y: y.to_vec(),
-                    style: Style::DashedLine,
-                    color: 1,
-                });
-            }
-            if let Some(y) = after
-                .as_ref()
-                .and_then(|a| a.get(r))
-                .and_then(|s| s.get(&ch.name))
-            {
-                series.push(Series {
-                    label: format!("with {}", d.missing_effects.join(" + ")),
-                    x: run.time_s.clone(),
-                    y: y.to_vec(),
-                    style: Style::Line,
-                    color: 2,
-                });
+            for (i, (label, sims)) in models.iter().enumerate() {
+                if let Some(y) = sims.get(r).and_then(|s| s.get(&ch.name)) {
+                    series.push(Series {
+                        label: label.clone(),
+                        x: run.time_s.clone(),
+                        y: y.to_vec(),
+                        style: if i == 0 {
+                            Style::DashedLine
+                        } else {
+                            Style::Line
+                        },
+                        color: i + 1,
+                    });
+                }
             }
             panels.push(Panel {
                 y_label: format!("{joint} [rad]"),
@@ -481,14 +466,14 @@ pub fn arm_diagnosis_report(
             });
         }
         let fig = Figure {
-            title: format!("{} {}: measured, baseline, named model", ds.title, run.name),
+            title: format!("{title} ({})", run.name),
             x_label: "time [s]".into(),
             log_x: false,
             height_px: longreach_plot::min_height_px(panels.len()).max(600),
             panels,
             width_px: 1000,
         };
-        let name = format!("arm_diagnosis_{}.png", run.name);
+        let name = format!("{prefix}_{}.png", run.name);
         write_atomic_with(&dir.join(&name), |p| Ok(write_png(&fig, p)?))?;
         md.push_str(&format!("![{name}]({name})\n"));
     }

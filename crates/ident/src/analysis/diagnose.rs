@@ -337,6 +337,60 @@ fn refine_or_note(
     }
 }
 
+/// The best candidate refined when it leaves the data above [`REFINE_MARGIN`]: its law
+/// in its shape-free form ([`refine_shape`]) and, on an arm, an effect at the joints or
+/// motors with its values per joint ([`split_per_joint`]: a shoulder's bearing is not a
+/// wrist's). The law is refined only when the split leaves the data above the margin
+/// too, and the better of the two by BIC is kept; the candidate is then scored again.
+fn refine_winner(
+    prep: &Prepared<'_>,
+    judge: &Judge,
+    cands: &mut [(Candidate, Option<Fitted>)],
+    refinements: &mut Vec<ShapeRefinement>,
+    joint_splits: &mut Vec<JointSplit>,
+    notes: &mut Vec<String>,
+) {
+    let Some((c, Some(f))) = cands.first() else {
+        return;
+    };
+    if f.nrmse <= REFINE_MARGIN * f.noise_floor || c.explained <= 0.0 {
+        return;
+    }
+    let (effect, f) = (c.effect.clone(), f.clone());
+    let e = f.model.effects.len().saturating_sub(1);
+    let split = split_or_note(prep, &f, e, notes);
+    let split_kept = split.as_ref().filter(|(s, _)| s.kept);
+    let shaped = match split_kept {
+        Some((_, sf)) if sf.nrmse <= REFINE_MARGIN * sf.noise_floor => None,
+        _ => refine_or_note(prep, &f, e, notes),
+    };
+    let shape_score = shaped
+        .as_ref()
+        .filter(|(r, _)| r.kept)
+        .map(|(r, _)| r.score);
+    let split_wins = split_kept.is_some_and(|(s, _)| shape_score.is_none_or(|x| s.score >= x));
+    let mut best = None;
+    if let Some((mut s, sf)) = split {
+        s.kept = s.kept && split_wins;
+        notes.push(describe_split(&s));
+        if s.kept {
+            best = Some(sf);
+        }
+        joint_splits.push(s);
+    }
+    if let Some((mut r, refined)) = shaped {
+        r.kept = r.kept && !split_wins;
+        if r.kept {
+            best = Some(refined);
+        }
+        refinements.push(r);
+    }
+    if let Some(b) = best {
+        cands[0] = (judge.candidate(effect, &b), Some(b));
+        rank(cands);
+    }
+}
+
 /// [`split_per_joint`], a failure noted for the explanation instead of ending the
 /// diagnosis.
 fn split_or_note(
@@ -913,51 +967,19 @@ pub fn diagnose(
         .collect();
     rank(&mut cands);
     let parametric = if at_floor { Vec::new() } else { cands.clone() };
-    // The best candidate's law in its shape-free form when its catalog formula leaves
-    // the data well above the floor: the effect may be right and its formula wrong.
-    // On an arm, an effect at the joints or motors may first take its values per joint
-    // (a shoulder's bearing is not a wrist's); its law is then refined only when the
-    // split leaves the data above the margin too, and the better of the two by BIC kept.
+    // The best candidate refined when its catalog formula leaves the data well above
+    // the floor: the effect may be right and its formula (or its one value for every
+    // joint of an arm) wrong.
     let mut joint_splits = Vec::new();
     if !at_floor {
-        if let Some((c, Some(f))) = cands.first() {
-            if f.nrmse > REFINE_MARGIN * f.noise_floor && c.explained > 0.0 {
-                let (c, f) = (c.clone(), f.clone());
-                let e = f.model.effects.len().saturating_sub(1);
-                let split = split_or_note(prep, &f, e, &mut notes);
-                let split_kept = split.as_ref().filter(|(s, _)| s.kept);
-                let shaped = match split_kept {
-                    Some((_, sf)) if sf.nrmse <= REFINE_MARGIN * sf.noise_floor => None,
-                    _ => refine_or_note(prep, &f, e, &mut notes),
-                };
-                let shape_score = shaped
-                    .as_ref()
-                    .filter(|(r, _)| r.kept)
-                    .map(|(r, _)| r.score);
-                let split_wins =
-                    split_kept.is_some_and(|(s, _)| shape_score.is_none_or(|x| s.score >= x));
-                let mut best = None;
-                if let Some((mut s, sf)) = split {
-                    s.kept = s.kept && split_wins;
-                    notes.push(describe_split(&s));
-                    if s.kept {
-                        best = Some(sf);
-                    }
-                    joint_splits.push(s);
-                }
-                if let Some((mut r, refined)) = shaped {
-                    r.kept = r.kept && !split_wins;
-                    if r.kept {
-                        best = Some(refined);
-                    }
-                    refinements.push(r);
-                }
-                if let Some(b) = best {
-                    cands[0] = (judge.candidate(c.effect.clone(), &b), Some(b));
-                    rank(&mut cands);
-                }
-            }
-        }
+        refine_winner(
+            prep,
+            &judge,
+            &mut cands,
+            &mut refinements,
+            &mut joint_splits,
+            &mut notes,
+        );
     }
     // The runners-up's laws too, when one of them could explain the failure: a catalog
     // formula that happens to fit must not win against a law never refined.
