@@ -498,9 +498,14 @@ impl Drivetrain {
             };
             if !factored {
                 sv.kept = false;
+                // (a matrix of NaNs is not singular: the iteration diverged before it)
+                let diverged = sv.q1.iter().chain(&sv.rhs).any(|x| !x.is_finite());
                 return Err(DriveError::BlowUp {
                     time_s: t1,
-                    what: if self.any_friction {
+                    what: if diverged {
+                        "the Newton iteration of the step diverged (its iterate is not a number)"
+                            .into()
+                    } else if self.any_friction {
                         "the Newton matrix of the step (with relay friction) is singular".into()
                     } else {
                         "the Newton matrix of the step is not positive definite".into()
