@@ -126,7 +126,9 @@ pub struct SynthArgs {
     model: Option<PathBuf>,
     /// Hidden effect `name=v1,v2,..` (parameters in the effect's order; `name` alone
     /// uses the defaults). Repeatable. An unknown name lists the registered effects;
-    /// docs/models.md ("Effects") describes them and their parameters.
+    /// docs/models.md ("Effects") describes them and their parameters. On an arm,
+    /// `name@j2+j5=...` hides it at those joints only (values per joint: repeat it on
+    /// other joints).
     #[arg(long = "effect")]
     effects: Vec<String>,
     /// Mean tensions of the sweep runs [N].
@@ -741,8 +743,20 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// The joints of `--effect name@j2+j5=...`, if given.
+fn effect_joints(s: &str) -> Option<Vec<String>> {
+    let head = s.split_once('=').map_or(s, |(h, _)| h);
+    head.split_once('@').map(|(_, j)| {
+        j.split('+')
+            .map(|x| x.trim().to_string())
+            .filter(|x| !x.is_empty())
+            .collect()
+    })
+}
+
 fn parse_effect(s: &str) -> Result<(&'static dyn effects::Effect, Vec<f64>)> {
     let (name, vals) = s.split_once('=').unwrap_or((s, ""));
+    let name = name.split_once('@').map_or(name, |(n, _)| n);
     let e = effects::find(name.trim()).ok_or_else(|| {
         anyhow!(
             "unknown effect `{name}`; registered effects: {}",
@@ -820,8 +834,23 @@ pub fn run_synth(a: &SynthArgs) -> Result<ExitCode> {
     };
     for s in &a.effects {
         let (e, v) = parse_effect(s)?;
+        let joints = effect_joints(s);
+        if let Some(j) = &joints {
+            if let Some((msg, fix)) = longreach_ident::model::joints_problem(e, j, &base_ds) {
+                bail!("--effect {s}: {msg}\n  fix: {fix}");
+            }
+        }
+        if let Some((_, at)) =
+            longreach_ident::model::joints_overlap(&model.effects, e, joints.as_deref())
+        {
+            bail!(
+                "--effect {s}: {} is hidden twice on {at}\n  fix: hide an effect once, or once per joint with disjoint @joints",
+                e.name()
+            );
+        }
         let mut m = model.with_effect(e);
         if let Some(u) = m.effects.last_mut() {
+            u.joints = joints;
             for (p, x) in u.params.iter_mut().zip(&v) {
                 *p = ParamDef {
                     value: *x,

@@ -309,17 +309,18 @@ fn arm_synth_compare_report() {
         json(&j)["worst_ratio"].as_f64().unwrap()
     };
     assert!(worst_ratio() > 10.0);
-    // Friction hidden at j5 alone (a model file's `joints`), fitted there and written
-    // back as the arm's scenario (`--write-scenario`): the dataset's arm replaced by
-    // it, the baseline is at the floor again, and `run` simulates it.
-    let truth = tmp.path().join("truth.toml");
-    std::fs::write(
-        &truth,
-        "[[effect]]\nname = \"joint_friction\"\njoints = [\"j5\"]\n\
-         [effect.params.coulomb_n_m]\nvalue = 1.0\n[effect.params.viscous_n_m_s]\nvalue = 0.1\n",
-    )
-    .unwrap();
-    let (ok, _, err) = synth(&["--move", "j5:0.2", "--model", truth.to_str().unwrap()]);
+    // Friction hidden at j5 alone (`--effect name@joints`), fitted there (a model file's
+    // `joints`) and written back as the arm's scenario (`--write-scenario`): the
+    // dataset's arm replaced by it, the baseline is at the floor again, and `run`
+    // simulates it.
+    let (ok, _, err) = synth(&["--move", "j5:0.2", "--effect", "joint_friction@j9"]);
+    assert!(!ok && err.contains("joint `j9` is not driven"), "{err}");
+    let (ok, _, err) = synth(&[
+        "--move",
+        "j5:0.2",
+        "--effect",
+        "joint_friction@j5=1,0.1,0.01",
+    ]);
     assert!(ok, "{err}");
     let model = tmp.path().join("m.toml");
     std::fs::write(

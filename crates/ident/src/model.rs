@@ -1072,21 +1072,12 @@ impl Model {
                     }
                 }
                 // The same effect twice: on disjoint joints only (its values per joint).
-                for (j, other) in effects_out.iter().enumerate() {
-                    if !effects::same(other.effect, effect) {
-                        continue;
-                    }
-                    let overlap = match (&other.joints, &joints) {
-                        (Some(a), Some(b)) => a.iter().find(|x| b.contains(x)).cloned(),
-                        _ => Some("every joint".to_string()),
-                    };
-                    if let Some(at) = overlap {
-                        return Err(err(
-                            &path,
-                            format!("effect `{name}` is given twice on {at} (also [[effect]] {j})"),
-                            "give an effect once, or once per joint with disjoint `joints` lists",
-                        ));
-                    }
+                if let Some((j, at)) = joints_overlap(&effects_out, effect, joints.as_deref()) {
+                    return Err(err(
+                        &path,
+                        format!("effect `{name}` is given twice on {at} (also [[effect]] {j})"),
+                        "give an effect once, or once per joint with disjoint `joints` lists",
+                    ));
                 }
                 effects_out.push(EffectUse {
                     effect,
@@ -1120,9 +1111,78 @@ impl Model {
     }
 }
 
-/// The `joints` list of effect `effect` at `path` in a model file, if any: names of
-/// joints the dataset's arm drives, each once; only on arm datasets, and not for an
-/// effect on a link or a sensor.
+/// Why `names` cannot restrict `effect` on `ds` (message, fix), if it cannot: only on
+/// arm datasets, not for an effect on a link or a sensor, a non-empty list of joints
+/// the arm drives, each once.
+pub fn joints_problem(
+    effect: &dyn Effect,
+    names: &[String],
+    ds: &Dataset,
+) -> Option<(String, String)> {
+    let DatasetKind::ArmMoves(am) = &ds.kind else {
+        return Some((
+            "`joints` applies to arm datasets (arm_moves) only".into(),
+            "remove `joints`: the rig has one joint".into(),
+        ));
+    };
+    if matches!(effect.site(), Site::Link | Site::Sensor) {
+        return Some((
+            format!(
+                "effect `{}` acts on {}, not at joints",
+                effect.name(),
+                if effect.site() == Site::Link {
+                    "links"
+                } else {
+                    "sensor channels"
+                }
+            ),
+            "remove `joints` from this effect".into(),
+        ));
+    }
+    let driven = am.joints.join(", ");
+    if names.is_empty() {
+        return Some((
+            "must be a non-empty list of joint names".into(),
+            format!("write joints = [\"j2\"] with joints the arm drives: {driven}"),
+        ));
+    }
+    for (i, n) in names.iter().enumerate() {
+        if !am.joints.contains(n) {
+            return Some((
+                format!("joint `{n}` is not driven by the dataset's arm"),
+                format!("use joints the arm drives: {driven}"),
+            ));
+        }
+        if names[..i].contains(n) {
+            return Some((
+                format!("joint `{n}` is listed twice"),
+                "list each joint once".into(),
+            ));
+        }
+    }
+    None
+}
+
+/// Where `effect` on `joints` (`None`: every joint) overlaps a use of the same effect
+/// among `uses`: that use's index and the joint (or "every joint").
+pub fn joints_overlap(
+    uses: &[EffectUse],
+    effect: &dyn Effect,
+    joints: Option<&[String]>,
+) -> Option<(usize, String)> {
+    uses.iter().enumerate().find_map(|(j, other)| {
+        if !effects::same(other.effect, effect) {
+            return None;
+        }
+        match (other.joints.as_deref(), joints) {
+            (Some(a), Some(b)) => a.iter().find(|x| b.contains(x)).map(|x| (j, x.clone())),
+            _ => Some((j, "every joint".to_string())),
+        }
+    })
+}
+
+/// The `joints` list of effect `effect` at `path` in a model file, if any
+/// ([`joints_problem`]).
 fn parse_joints(
     text: &str,
     file: &str,
@@ -1136,27 +1196,6 @@ fn parse_joints(
     };
     let field = format!("{path}.joints");
     let err = |msg: String, fix: &str| ModelError::File(field_error(text, file, &field, msg, fix));
-    let DatasetKind::ArmMoves(am) = &ds.kind else {
-        return Err(err(
-            "`joints` applies to arm datasets (arm_moves) only".into(),
-            "remove `joints`: the rig has one joint",
-        ));
-    };
-    if matches!(effect.site(), Site::Link | Site::Sensor) {
-        return Err(err(
-            format!(
-                "effect `{}` acts on {}, not at joints",
-                effect.name(),
-                if effect.site() == Site::Link {
-                    "links"
-                } else {
-                    "sensor channels"
-                }
-            ),
-            "remove `joints` from this effect",
-        ));
-    }
-    let driven = am.joints.join(", ");
     let names: Vec<String> = v
         .as_array()
         .and_then(|a| {
@@ -1164,28 +1203,16 @@ fn parse_joints(
                 .map(|x| x.as_str().map(str::to_string))
                 .collect::<Option<Vec<_>>>()
         })
-        .filter(|n| !n.is_empty())
         .ok_or_else(|| {
             err(
-                "must be a non-empty list of joint names".into(),
-                &format!("write joints = [\"j2\"] with joints the arm drives: {driven}"),
+                "must be a list of joint names".into(),
+                "write joints = [\"j2\"] with joints the arm drives",
             )
         })?;
-    for (i, n) in names.iter().enumerate() {
-        if !am.joints.contains(n) {
-            return Err(err(
-                format!("joint `{n}` is not driven by the dataset's arm"),
-                &format!("use joints the arm drives: {driven}"),
-            ));
-        }
-        if names[..i].contains(n) {
-            return Err(err(
-                format!("joint `{n}` is listed twice"),
-                "list each joint once",
-            ));
-        }
+    match joints_problem(effect, &names, ds) {
+        Some((msg, fix)) => Err(err(msg, &fix)),
+        None => Ok(Some(names)),
     }
-    Ok(Some(names))
 }
 
 /// The `[effect.shape]` table of effect `effect` at `path` in a model file, if any
