@@ -67,6 +67,11 @@ pub fn print_arm_comparison(c: &ArmComparison) {
     }
     println!("{w}");
     println!("{}", figures_table(c));
+    let told =
+        analysis::describe_findings("What the sensors show against the model: ", &c.findings);
+    if !told.is_empty() {
+        println!("{told}");
+    }
 }
 
 fn figure_cells(f: &Figures) -> [String; 6] {
@@ -307,6 +312,8 @@ fn write_arm_report(dir: &Path, ds: &Dataset, c: &ArmComparison, sims: &[Channel
             ));
         }
     }
+    md.push_str("\n## What the sensors show\n\n");
+    findings_table(&mut md, &c.findings);
     md.push_str("\n## Pictures\n\n");
     md.push_str(&joint_pictures(
         dir,
@@ -338,28 +345,7 @@ pub fn arm_diagnosis_report(
     let mut md = String::from("\n## The arm\n\n");
     let table = |md: &mut String, title: &str, f: &[analysis::ArmFinding]| {
         md.push_str(&format!("### {title}\n\n"));
-        if f.is_empty() {
-            md.push_str(
-                "Nothing beyond the tolerances (docs/models.md, \"The arm's evidence\").\n\n",
-            );
-            return;
-        }
-        md.push_str(
-            "| joint | what | measured | model | runs | finding |\n|---|---|---|---|---|---|\n",
-        );
-        for x in f {
-            md.push_str(&format!(
-                "| {} | {} | {:.4} | {:.4} | {} of {} | {} |\n",
-                x.joint,
-                x.kind,
-                x.measured,
-                x.model,
-                x.runs.len(),
-                x.of_runs,
-                x.sentence
-            ));
-        }
-        md.push('\n');
+        findings_table(md, f);
     };
     table(
         &mut md,
@@ -417,6 +403,30 @@ pub fn arm_diagnosis_report(
         &models,
     )?);
     Ok(md)
+}
+
+/// The arm's findings as a markdown table ("nothing" when there are none).
+fn findings_table(md: &mut String, f: &[analysis::ArmFinding]) {
+    if f.is_empty() {
+        md.push_str("Nothing beyond the tolerances (docs/models.md, \"The arm's evidence\").\n\n");
+        return;
+    }
+    md.push_str(
+        "| joint | what | measured | model | runs | finding |\n|---|---|---|---|---|---|\n",
+    );
+    for x in f {
+        md.push_str(&format!(
+            "| {} | {} | {:.4} | {:.4} | {} of {} | {} |\n",
+            x.joint,
+            x.kind,
+            x.measured,
+            x.model,
+            x.runs.len(),
+            x.of_runs,
+            x.sentence
+        ));
+    }
+    md.push('\n');
 }
 
 /// One picture per run, `{prefix}_{run}.png`, a panel per driven joint: its angle

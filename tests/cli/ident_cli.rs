@@ -283,6 +283,8 @@ fn arm_synth_compare_report() {
         stdout.contains("settling 2% [s]") && stdout.contains("joint_j5_rad"),
         "{stdout}"
     );
+    // (a control: the sensors show nothing against the model)
+    assert!(!stdout.contains("What the sensors show"), "{stdout}");
     let c = json(&j);
     let worst = c["worst_ratio"].as_f64().unwrap();
     assert!(worst <= 1.5, "control at {worst}x its floor");

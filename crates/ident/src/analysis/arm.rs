@@ -134,6 +134,9 @@ pub struct ArmComparison {
     pub worst_windows: Vec<ArmWhere>,
     /// The figures of every move.
     pub figures: Vec<MoveFigures>,
+    /// What the sensors show against the model in the arm's terms, largest first
+    /// ([`super::arm_findings`]).
+    pub findings: Vec<super::ArmFinding>,
     /// The simulation step the model ran at, when it was chosen from the data
     /// ([`choose_arm_step`]; `None`: steps of at most [`crate::plant::ARM_MAX_STEP_S`]).
     pub step: Option<ArmStep>,
@@ -475,14 +478,17 @@ pub fn compare_arm(ds: &Dataset, sims: &[Channels]) -> Result<ArmComparison, Ide
     windows.sort_by(|a, b| b.share.total_cmp(&a.share));
     windows.truncate(8);
     let worst_ratio = channels.iter().map(|c| c.ratio).fold(0.0, f64::max);
-    Ok(ArmComparison {
+    let mut c = ArmComparison {
         dataset: ds.title.clone(),
         channels,
         worst_ratio,
         worst_windows: windows,
         figures,
+        findings: Vec::new(),
         step: None,
-    })
+    };
+    c.findings = super::arm_evidence::arm_findings(am, &c, sims);
+    Ok(c)
 }
 
 /// The arm dataset of `ds`, if it is one.

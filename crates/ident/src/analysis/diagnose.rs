@@ -7,10 +7,10 @@ use serde::Serialize;
 
 use super::fit::fit_simulated;
 use super::{
-    arm_dataset, arm_findings, compare, compare_arm, describe, describe_findings, fit_model,
-    fit_model_from, refine_shape, scan_coordinates, screen_model, searched_starts, signatures,
-    simulate_arm, split_per_joint, ArmFinding, Comparison, Fitted, JointSplit, Prepared,
-    RunResonance, ShapeRefinement, Signature, Start, Where,
+    arm_dataset, compare, compare_arm, describe, describe_findings, fit_model, fit_model_from,
+    refine_shape, scan_coordinates, screen_model, searched_starts, signatures, simulate_arm,
+    split_per_joint, ArmFinding, Comparison, Fitted, JointSplit, Prepared, RunResonance,
+    ShapeRefinement, Signature, Start, Where,
 };
 use crate::error::IdentError;
 use crate::model::Model;
@@ -1433,14 +1433,14 @@ impl ArmEvidence {
 /// [`arm_findings`] of `model` on `prep`'s arm dataset (empty for other data, or when
 /// the simulation fails: the evidence is an aid, not the diagnosis).
 fn arm_evidence_of(prep: &Prepared<'_>, model: &Model) -> Vec<ArmFinding> {
-    let Some(am) = arm_dataset(prep.ds) else {
+    if arm_dataset(prep.ds).is_none() {
         return Vec::new();
-    };
+    }
     let Ok(sims) = simulate_arm(prep.ds, model, prep.arm_refinement) else {
         return Vec::new();
     };
     compare_arm(prep.ds, &sims)
-        .map(|c| arm_findings(am, &c, &sims))
+        .map(|c| c.findings)
         .unwrap_or_default()
 }
 
