@@ -12,12 +12,10 @@
 //!   the simulation) or only screened at their starting values ([`screen_model`]);
 //! * `compare.rs`: a model measured against the data ([`compare`]: the error per run and
 //!   per test frequency, where it concentrates, residual checks, resonances);
-//! * `arm.rs`: a model measured against an arm dataset ([`compare_arm`]: every channel
+//! * `arm/`: a model measured against an arm dataset ([`compare_arm`]: every channel
 //!   of every run against its noise floor, where the error concentrates, the vibration
-//!   figures of every move);
-//! * `arm_evidence.rs`: what an arm's sensors show against a model in the arm's terms
-//!   (vibration figures per joint over its moves, encoder offsets at rest and settled;
-//!   [`arm_findings`]);
+//!   figures of every move, and in `evidence.rs` what the sensors show in the arm's
+//!   terms, [`arm_findings`]);
 //! * `diagnose.rs`: the baseline and every applicable registered effect fitted, ranked,
 //!   and the missing effect named when the evidence is decisive ([`diagnose`]);
 //! * `joints.rs`: an arm effect's values split per joint (one use per moved joint,
@@ -28,7 +26,6 @@
 //!   produce it, its size and the share of the excess error it removes ([`signatures`]).
 
 mod arm;
-mod arm_evidence;
 mod compare;
 mod diagnose;
 mod fit;
@@ -38,11 +35,11 @@ mod shape;
 mod signature;
 
 pub use arm::{
-    arm_dataset, choose_arm_step, compare_arm, prepared_at_step, residual_vibration, simulate_arm,
-    simulate_arm_poses, ArmComparison, ArmStep, ArmWhere, ChannelError, Figures, MoveFigures,
-    StepTrial, ARM_MAX_REFINEMENT, ARM_STEP_TOLERANCE_SIGMA, ARM_WINDOW_S,
+    arm_dataset, arm_findings, choose_arm_step, compare_arm, describe_findings, prepared_at_step,
+    residual_vibration, simulate_arm, simulate_arm_poses, ArmComparison, ArmFinding, ArmStep,
+    ArmWhere, ChannelError, Figures, MoveFigures, StepTrial, ARM_MAX_REFINEMENT,
+    ARM_STEP_TOLERANCE_SIGMA, ARM_WINDOW_S, FINDINGS_TOLD, OFFSET_COUNTS,
 };
-pub use arm_evidence::{arm_findings, describe_findings, ArmFinding, FINDINGS_TOLD, OFFSET_COUNTS};
 pub use compare::{
     compare, Comparison, FrequencyError, ResidualChecks, RunChannelError, RunError, RunResonance,
     Where,

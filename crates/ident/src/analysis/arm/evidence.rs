@@ -29,7 +29,7 @@
 
 use serde::Serialize;
 
-use super::arm::{ArmComparison, Figures};
+use super::{ArmComparison, Figures};
 use crate::dataset::{ArmMovesDataset, ArmQuantity, ARM_ENCODER_RESOLUTION_RAD};
 use crate::plant::Channels;
 

@@ -29,6 +29,9 @@
 
 use serde::Serialize;
 
+mod evidence;
+pub use evidence::{arm_findings, describe_findings, ArmFinding, FINDINGS_TOLD, OFFSET_COUNTS};
+
 use super::prepare::noise_sigma_second_difference;
 use crate::dataset::{
     ArmMovesDataset, ArmQuantity, ArmRun, Dataset, DatasetKind, ARM_ENCODER_RESOLUTION_RAD,
@@ -135,8 +138,8 @@ pub struct ArmComparison {
     /// The figures of every move.
     pub figures: Vec<MoveFigures>,
     /// What the sensors show against the model in the arm's terms, largest first
-    /// ([`super::arm_findings`]).
-    pub findings: Vec<super::ArmFinding>,
+    /// ([`arm_findings`]).
+    pub findings: Vec<ArmFinding>,
     /// The simulation step the model ran at, when it was chosen from the data
     /// ([`choose_arm_step`]; `None`: steps of at most [`crate::plant::ARM_MAX_STEP_S`]).
     pub step: Option<ArmStep>,
@@ -487,7 +490,7 @@ pub fn compare_arm(ds: &Dataset, sims: &[Channels]) -> Result<ArmComparison, Ide
         findings: Vec::new(),
         step: None,
     };
-    c.findings = super::arm_evidence::arm_findings(am, &c, sims);
+    c.findings = evidence::arm_findings(am, &c, sims);
     Ok(c)
 }
 
