@@ -25,7 +25,7 @@
 
 use std::path::Path;
 
-use longreach_drive::effects::{Effect, Site};
+use longreach_drive::effects::Site;
 
 use crate::dataset::{Dataset, DatasetKind};
 use crate::model::{BaseParam, EffectUse, Model, Role};
@@ -84,7 +84,7 @@ pub fn arm_scenario_text(
             not_arm.push(u.label());
             continue;
         }
-        if bends_links(u.effect) {
+        if crate::plant::bends_links(u.effect) {
             add_to_flex(&mut doc, u)?;
             continue;
         }
@@ -122,11 +122,6 @@ fn per_run(name: &str) -> String {
     format!(
         "`{name}` has values per run, which one arm scenario cannot hold; fit it with per_run = false first"
     )
-}
-
-/// Whether `effect` acts on a link's bending (as the arm plant decides).
-fn bends_links(effect: &'static dyn Effect) -> bool {
-    crate::plant::bends_links(effect)
 }
 
 /// The `[[effect]]` table of `u` (its values in the effect's order, its joints and

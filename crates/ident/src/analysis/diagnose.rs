@@ -1131,12 +1131,13 @@ pub fn diagnose(
     } else {
         let after = winner.as_ref().or(lead_fit.as_ref());
         ArmEvidence {
-            is_arm: arm_dataset(prep.ds).is_some(),
             base: arm_evidence_of(prep, &base.model),
             after: after
                 .map(|f| arm_evidence_of(prep, &f.model))
                 .unwrap_or_default(),
+            // (empty on the rig's data: its explanation has no arm evidence)
             after_of: match (&winner, &lead) {
+                _ if arm_dataset(prep.ds).is_none() => String::new(),
                 (Some(_), _) => named.join(" and "),
                 (None, Some(l)) => l.effects.join(" and "),
                 _ => String::new(),
@@ -1391,7 +1392,7 @@ fn explain(
             } else {
                 s.push_str("No registered effect applies to this kind of data. ");
             }
-            if arm.is_arm {
+            if arm_dataset(prep.ds).is_some() {
                 s.push_str(&arm.after_words());
             } else {
                 s.push_str(&describe(sigs));
@@ -1404,20 +1405,19 @@ fn explain(
 /// An arm's evidence for the explanation ([`arm_findings`]).
 #[derive(Debug, Default)]
 struct ArmEvidence {
-    /// The data are an arm's.
-    is_arm: bool,
     /// Against the baseline.
     base: Vec<ArmFinding>,
     /// Against the model with `after_of`.
     after: Vec<ArmFinding>,
-    /// The effects of that model (the named, else the lead's; empty: none).
+    /// The effects of that model (the named, else the lead's; empty: none, or not an
+    /// arm's data).
     after_of: String,
 }
 
 impl ArmEvidence {
     /// What the model with the named (or lead) effects still leaves, in words.
     fn after_words(&self) -> String {
-        if !self.is_arm || self.after_of.is_empty() {
+        if self.after_of.is_empty() {
             return String::new();
         }
         if self.after.is_empty() {

@@ -113,13 +113,11 @@ pub fn split_per_joint(
     // Each use starts from the shared values, but a value the shared fit left on a
     // bound (a viscous coefficient driven to 0 on its log scale by a compromise between
     // joints) from the effect's default: on its bound it could not move.
-    let mut start = shared.clone();
-    for (p, spec) in start.params.iter_mut().zip(shared.effect.params()) {
-        let inside = crate::fitting::strictly_inside(p.value, p.lower, p.upper);
-        if p.fit && p.run_values.is_none() && inside.to_bits() != p.value.to_bits() {
-            p.value = spec.default;
-        }
-    }
+    // ([`crate::model::Model::with_bound_values_reset`], the fits' own restart rule)
+    let start = fitted
+        .model
+        .with_bound_values_reset(prep.runs.len())
+        .map_or_else(|| shared.clone(), |m| m.effects[e].clone());
     let mut uses: Vec<EffectUse> = moved
         .iter()
         .map(|j| EffectUse {

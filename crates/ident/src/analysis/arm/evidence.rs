@@ -196,19 +196,18 @@ fn figure_sentence(kind: &str, m: f64, s: f64, where_: &str) -> String {
     }
 }
 
-/// The [`Resolution`] of the move of joint `k` in run `run` (`None`: no such run, or
-/// the joint's command never changes in it).
-fn resolution(am: &ArmMovesDataset, run: &str, k: usize) -> Option<Resolution> {
+/// The [`Resolution`] of the moves of run `run`, over the span its commands move in
+/// (the comparison's, [`super::move_span`], which its figures are measured from); `None`:
+/// no such run, or its commands never change.
+fn resolution(am: &ArmMovesDataset, run: &str) -> Option<Resolution> {
     let r = am.runs.iter().find(|r| r.name == run)?;
-    let c = r.command_rad.get(k)?;
-    let first = c.iter().position(|&x| (x - c[0]).abs() > 0.0)?;
-    let last = c.iter().rposition(|&x| (x - c[c.len() - 1]).abs() > 0.0)?;
+    let (a, b) = super::move_span(r)?;
     let t = |i: usize| r.time_s.get(i).copied().unwrap_or(0.0);
     let end = *r.time_s.last()?;
     Some(Resolution {
         dt_s: r.dt_s(),
-        horizon_s: end - t(first.saturating_sub(1)),
-        settle_window_s: end - t(last + 1),
+        horizon_s: end - t(a),
+        settle_window_s: end - t(b),
     })
 }
 
@@ -238,14 +237,19 @@ pub fn arm_findings(
 ) -> Vec<ArmFinding> {
     let mut out = Vec::new();
     // Figures, per joint over its moves.
-    for (k, joint) in am.joints.iter().enumerate() {
-        let moves: Vec<_> = cmp.figures.iter().filter(|f| &f.joint == joint).collect();
+    for joint in &am.joints {
+        // (each move with its run's resolution, found once for every figure)
+        let moves: Vec<_> = cmp
+            .figures
+            .iter()
+            .filter(|f| &f.joint == joint)
+            .filter_map(|f| Some((f, resolution(am, &f.run)?)))
+            .collect();
         for kind in FIGURES {
             let judged: Vec<(String, f64, f64, f64)> = moves
                 .iter()
-                .filter_map(|f| {
-                    let res = resolution(am, &f.run, k)?;
-                    judge(kind, &f.measured, &f.model, res)
+                .filter_map(|(f, res)| {
+                    judge(kind, &f.measured, &f.model, *res)
                         .map(|(a, b, w)| (f.run.clone(), a, b, w))
                 })
                 .collect();
@@ -282,11 +286,8 @@ pub fn arm_findings(
         let (mut n_rest, mut n_settled) = (0, 0);
         for (r, run) in am.runs.iter().enumerate() {
             let n = run.time_s.len();
-            let first_move = run
-                .command_rad
-                .iter()
-                .filter_map(|c| c.iter().position(|&x| (x - c[0]).abs() > 0.0))
-                .min();
+            // (the first sample where a command has moved)
+            let first_move = super::move_span(run).map(|(a, _)| a + 1);
             let q_of = |w: (usize, usize)| {
                 let j = offset(am, sims, r, ArmQuantity::Joint, joint, w);
                 let m = offset(am, sims, r, ArmQuantity::Motor, joint, w);
