@@ -62,7 +62,7 @@ use crate::transmission::ideal;
 use crate::transmission::pair::StaticPair;
 use crate::transmission::{
     CompiledPair, Drivetrain, JointLoad, JointSide, MotorInputs, MotorSpec, PairSpec, PlantState,
-    Relay, RelayFriction, RelayRule, RelayState, Tensioner,
+    Relay, RelayFriction, RelayState, Tensioner,
 };
 
 /// Most relay pulleys per rope the plant takes when they have friction.
@@ -312,8 +312,7 @@ impl RigModel {
                     .into(),
             });
         }
-        let pair =
-            CompiledPair::new(pair_spec, 1, dt_s, "rig")?.with_relay_rule(RelayRule::BackwardEuler);
+        let pair = CompiledPair::new(pair_spec, 1, dt_s, "rig")?;
         let fast = pair.relays.is_none() && loads.is_empty();
         let drive = Drivetrain::new(vec![pair], loads, 1, dt_s, None)?;
         Ok(Self {

@@ -52,7 +52,9 @@ impl Effect for RelayFrictionEffect {
         PARAMS
     }
     fn applies_to(&self, kind: DataKind) -> bool {
-        kind == DataKind::SineSweep
+        // The rig's sweeps and an arm's moves (every relay pulley of every pair); a
+        // specimen has no pulley.
+        matches!(kind, DataKind::SineSweep | DataKind::ArmMoves)
     }
     fn site(&self) -> Site {
         Site::RelayPulley

@@ -83,7 +83,7 @@ impl CompiledPair {
     }
 
     /// The same pair with its relay pulleys integrated by `rule` (the default is
-    /// [`RelayRule::Trapezoidal`]).
+    /// [`RelayRule::BackwardEuler`]).
     pub fn with_relay_rule(mut self, rule: RelayRule) -> Self {
         if let Some(c) = self.relays.as_mut() {
             c.rule = rule;

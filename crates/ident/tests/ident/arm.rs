@@ -1024,6 +1024,46 @@ fn arm_diagnose_gives_joint_friction_its_values_per_joint() {
     assert_eq!(back.named_values(), w.model.named_values());
 }
 
+/// Relay friction hidden at every relay pulley of longreach5 (the arm's relays step by
+/// backward Euler: with the trapezoidal rule this move diverged for light pulleys).
+const RELAY_TRUTH: &str = "rope = \"dyneema2\"\nlaw = \"four_element\"\n\
+    [[effect]]\nname = \"relay_friction\"\n\
+    [effect.params.coefficient]\nvalue = 0.01\n[effect.params.inertia_kg_m2]\nvalue = 0.005\n";
+
+#[test]
+fn arm_diagnose_names_relay_friction_and_recovers_its_coefficient() {
+    // Two short moves (j5; j2 with 8 kg) with the relay pulleys' bearings taking 1% of
+    // the hub load: the baseline misses by hundreds of floors (the motors settle, the
+    // joints keep offsets held by the relays' friction); `relay_friction` must be named
+    // at the floor with its coefficient.
+    use longreach_ident::analysis::{diagnose, prepared_at_step};
+    let dir = tempfile::tempdir().unwrap();
+    let ds = two_joint_moves(dir.path(), RELAY_TRUTH, 0.2, 2.2);
+    let base = Model::baseline(&ds).unwrap();
+    let (prep, _) = prepared_at_step(&ds, &base).unwrap();
+    let (d, b, winner) = diagnose(&prep, &base).unwrap();
+    let floor = d.comparison.noise_floor_nrmse;
+    println!(
+        "baseline {:.4} ({:.0}x the floor {floor:.4}); {}",
+        b.nrmse,
+        b.nrmse / floor,
+        d.explanation
+    );
+    assert!(b.nrmse > 20.0 * floor, "{}", b.nrmse);
+    assert_eq!(d.missing_effects, ["relay_friction"], "{}", d.explanation);
+    let after = d.nrmse_after.unwrap();
+    assert!(after <= 1.5 * floor, "{after} vs {floor}");
+    let w = winner.unwrap();
+    let c = w
+        .model
+        .named_values()
+        .into_iter()
+        .find(|(n, _)| n == "coefficient")
+        .unwrap()
+        .1;
+    assert!((c / 0.01 - 1.0).abs() < 0.03, "coefficient {c}");
+}
+
 #[test]
 fn a_written_arm_scenario_simulates_as_the_model() {
     use longreach_ident::arm_scenario::arm_scenario_text;

@@ -54,6 +54,8 @@ fn settings(e: &dyn Effect) -> [Vec<f64>; 2] {
         "nonlinear_creep" => [vec![400.0, 2.0], vec![800.0, 3.0]],
         "plastic_ratchet" => [vec![1e5], vec![3e5]],
         "payload_mass" => [vec![1.5], vec![4.0]],
+        // bearing friction 0.5% and 2% of the hub load, relay pulleys of 0.005 kg*m^2
+        "relay_friction" => [vec![0.005, 0.005], vec![0.02, 0.005]],
         _ => {
             let d: Vec<f64> = e.params().iter().map(|p| p.default).collect();
             [d.clone(), d]

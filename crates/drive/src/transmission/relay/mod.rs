@@ -62,14 +62,21 @@ pub use friction::{RelayFriction, RelayTorque};
 pub enum RelayRule {
     /// The trapezoidal rule (Newmark average acceleration): second order, no numerical
     /// damping; the relay pulleys' own modes (a pulley's inertia between two spans,
-    /// 100-300 Hz) keep whatever they are excited with. The arm's rule.
-    #[default]
+    /// 100-300 Hz, kHz for light pulleys) keep whatever they are excited with. Not used
+    /// by any plant: on longreach5 with 8 kg moving j2 and light relay pulleys
+    /// (c = 0.01, 2e-5 kg*m^2) its Newton iteration diverged at t = 1.64 s (1 ms) and
+    /// 1.98 s (0.25 ms), where backward Euler runs through.
     Trapezoidal,
     /// Backward Euler: first order, L-stable. A sticking pulley is a very stiff damper
     /// (the regularised friction's slope); the trapezoidal rule's amplification tends
     /// to -1 on it, backward Euler's to 0: the relay modes, far above the band of
     /// interest, are damped by the step instead of ringing, and the Newton iteration
-    /// starts closer. The rig's rule (its relay modes lie two decades above its 2-4 Hz).
+    /// starts closer. Every plant's rule: the rig's relay modes lie two decades above
+    /// its 2-4 Hz; the arm's lie above the band its sensors resolve (100-300 Hz for
+    /// the shipped 0.005 kg*m^2 pulleys, kHz for light ones). On the shipped
+    /// relay-friction arm scenario the two rules differ by at most 4e-4 rad at 0.125 ms,
+    /// ten times less than either differs from itself between 1 ms and 0.125 ms.
+    #[default]
     BackwardEuler,
 }
 
