@@ -47,7 +47,9 @@ pub struct PairMetrics {
     pub slack_events: u32,
     /// Tensile strength / peak tension.
     pub safety_factor: f64,
-    /// Tensile strength / largest static tension at the initial pose.
+    /// Tensile strength / largest tension of any one rope (any span) at the rest the
+    /// run starts from (the static equilibrium at the first command; a payload the
+    /// servos are not told of sags it).
     pub static_safety_factor: f64,
 }
 
@@ -185,12 +187,6 @@ pub fn run_observed(
     for (j, h) in q_hist.iter_mut().enumerate() {
         h.push(st.q_rad[j]);
     }
-    let static_sf: Vec<f64> = arm
-        .pairs()
-        .iter()
-        .zip(arm.static_pairs(arm.initial_q_rad()))
-        .map(|(p, s)| p.spec.rope.tensile_strength_n / s.f_pos_n.max(s.f_neg_n))
-        .collect();
     let mut peak = vec![0.0f64; np];
     let mut min = vec![f64::INFINITY; np];
     let mut slack = vec![0u32; np];
@@ -214,6 +210,15 @@ pub fn run_observed(
         peak[p] = peak[p].max(f);
         min[p] = min[p].min(f);
     }
+    // The static safety factor from the rest the run starts at (the arm's statics as
+    // built: sagged under a payload its servos are not told of, flexible links bent
+    // under gravity, every span with relay friction), not from the commanded pose.
+    let static_sf: Vec<f64> = arm
+        .pairs()
+        .iter()
+        .zip(&peak)
+        .map(|(p, &rest)| p.spec.rope.tensile_strength_n / rest)
+        .collect();
     let mut iters = 0u64;
     for i in 1..=steps {
         arm.step(&mut st)?;

@@ -238,14 +238,18 @@ fn payload_mass_lowers_the_rig_frequency_to_the_closed_form() {
 }
 
 /// A 1 m boom (1 kg, centre of mass at 0.5 m) on a horizontal axis, tip frame at 1 m,
-/// written to a file of its own for scenario `name`.
+/// in one file of the temporary folder shared by every run of these tests (written
+/// under a name of this scenario `name` and process, then renamed over it: tests in
+/// parallel never read a half-written file, and runs leave one file, not one each).
 fn boom_urdf(name: &str) -> PathBuf {
-    let path = std::env::temp_dir().join(format!(
-        "longreach_effects_{name}_{}.urdf",
+    let dir = std::env::temp_dir();
+    let path = dir.join("longreach_effects_boom.urdf");
+    let part = dir.join(format!(
+        "longreach_effects_boom.urdf.{name}.{}.part",
         std::process::id()
     ));
     std::fs::write(
-        &path,
+        &part,
         r#"<?xml version="1.0"?>
 <robot name="boom">
   <link name="base"/>
@@ -270,6 +274,7 @@ fn boom_urdf(name: &str) -> PathBuf {
 "#,
     )
     .unwrap();
+    std::fs::rename(&part, &path).unwrap();
     path
 }
 

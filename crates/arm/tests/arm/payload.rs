@@ -160,3 +160,65 @@ fn bad_payloads_name_file_line_and_field() {
         }
     }
 }
+
+#[test]
+fn static_safety_factor_is_taken_at_the_rest_the_run_starts_from() {
+    // The largest rope tension at rest, from the statics: at the commanded pose for a
+    // payload the servos know of (the arm rests on its command), at the sagged pose for
+    // 8 kg they are not told of (`payload_mass`: the run starts where the statics put
+    // the joints, not on the command).
+    let strength = |arm: &DrivenArm| arm.pairs()[0].spec.rope.tensile_strength_n;
+    let largest = |arm: &DrivenArm, q: &[f64]| -> Vec<f64> {
+        arm.static_pairs(q)
+            .iter()
+            .map(|s| s.f_pos_n.max(s.f_neg_n))
+            .collect()
+    };
+    let known = scenario(
+        "\n[payload]\nmass_kg = 8.0\nlink = \"tip\"\noffset_m = [0.1, 0.0, 0.0]\n",
+        0.01,
+        true,
+    );
+    let unknown = scenario(
+        "\n[payload]\nmass_kg = 0.0\nlink = \"tip\"\noffset_m = [0.1, 0.0, 0.0]\n\
+         [[effect]]\nname = \"payload_mass\"\nparams = [8.0]\n",
+        0.01,
+        true,
+    );
+    let sagged = unknown.initial_state().q_rad.clone();
+    let sag = sagged
+        .iter()
+        .zip(Q_RAD)
+        .fold(0.0f64, |a, (q, c)| a.max((q - c).abs()));
+    assert!(sag > 1e-4, "the unknown payload sags the arm: {sag}");
+    // At the commanded pose (the former figure) the statics would differ by more than
+    // the test's tolerance.
+    let moved = largest(&unknown, &Q_RAD)
+        .iter()
+        .zip(largest(&unknown, &sagged[..5]))
+        .fold(0.0f64, |a, (c, s)| a.max((c / s - 1.0).abs()));
+    println!(
+        "sag {sag:.3e} rad ({:?}); the largest static tension moves by {moved:.2e} with it",
+        &sagged[..5]
+    );
+    assert!(moved > 1e-5, "{moved}");
+    for (arm, q, what) in [
+        (&known, Q_RAD.to_vec(), "known"),
+        (&unknown, sagged[..5].to_vec(), "unknown"),
+    ] {
+        let (_, m) = run(arm, 0.01, 10, 0.005, &mut |_, _| {}).unwrap();
+        for (p, f) in m.pairs.iter().zip(largest(arm, &q)) {
+            let want = strength(arm) / f;
+            println!(
+                "{what} {}: {:.6} by the statics {want:.6}",
+                p.joint, p.static_safety_factor
+            );
+            assert!(
+                (p.static_safety_factor / want - 1.0).abs() < 1e-6,
+                "{what} {}: {} vs {want}",
+                p.joint,
+                p.static_safety_factor
+            );
+        }
+    }
+}
