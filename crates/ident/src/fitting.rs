@@ -239,6 +239,10 @@ pub struct FitOptions {
     /// The optimiser stops at its last accepted point before a Jacobian would exceed it
     /// (result then has `converged = false`). `usize::MAX`: no budget but `patience`.
     pub max_evaluations: usize,
+    /// A later start's probation ([`fit_joining`] with optima already found): after this
+    /// many Jacobians, a fit whose SSR is not below every optimum found stops, as one
+    /// that joined a basin does. `None`: every start runs to its end.
+    pub probation_jacobians: Option<usize>,
 }
 
 impl Default for FitOptions {
@@ -249,6 +253,7 @@ impl Default for FitOptions {
             patience: 200,
             diff_step: f64::EPSILON.sqrt(),
             max_evaluations: usize::MAX,
+            probation_jacobians: None,
         }
     }
 }
@@ -682,6 +687,8 @@ struct Problem<'a> {
     /// near one ([`fit_joining`]), and whether it did.
     known: &'a [FitResult],
     joined: Cell<bool>,
+    /// [`FitOptions::probation_jacobians`].
+    probation_jacobians: Option<usize>,
     /// Residuals of the last point that evaluated (see "Points where the model fails").
     last_good: RefCell<na::DVector<f64>>,
     /// Trial points where the model failed, and the first failure.
@@ -757,7 +764,12 @@ impl LeastSquaresProblem<f64, na::Dyn, na::Dyn> for Problem<'_> {
             // the point is the last one accepted, and the Jacobian's base point: its
             // residuals are at hand (cached by the analysis' problems), not counted again
             if let Ok(r) = evaluate(self.residuals, self.specs, &x, Some(self.n)) {
-                if joins(r.iter().map(|v| v * v).sum()) {
+                let ssr: f64 = r.iter().map(|v| v * v).sum();
+                // on probation: still above every optimum found after its Jacobians
+                let lags = self.probation_jacobians.is_some_and(|k| {
+                    self.jacobians.get() >= k && self.known.iter().all(|o| ssr > o.ssr)
+                });
+                if joins(ssr) || lags {
                     self.joined.set(true);
                     return None;
                 }
@@ -867,6 +879,7 @@ pub fn fit_joining(
         tolerance: opts.tolerance,
         known,
         joined: Cell::new(false),
+        probation_jacobians: opts.probation_jacobians,
         specs: params,
         transforms,
         u: na::DVector::from_vec(u0),

@@ -438,6 +438,7 @@ fn starting_values(
                         patience: 60,
                         diff_step: 1e-6,
                         max_evaluations: usize::MAX,
+                        probation_jacobians: None,
                     },
                 ) {
                     Ok(r) if r.ssr <= costs[k] => r.values,
@@ -639,6 +640,13 @@ pub const DEAR_EVALUATIONS_PER_PARAM: usize = 20;
 /// the whole diagnosis, and ended worse than the other starts.
 pub const ARM_EVALUATIONS_PER_PARAM: usize = 30;
 
+/// Jacobians a later start of an arm fit may take while its SSR stays above every
+/// optimum the earlier starts found ([`crate::fitting::FitOptions::probation_jacobians`]).
+/// On `example_arm_joint_friction` the later starts cost 102 s of the candidates' 233 s
+/// of CPU, and none of them ended below its candidate's first start but one
+/// (`extra_retardation`'s second, whose first stopped on its budget unconverged).
+pub const ARM_PROBATION_JACOBIANS: usize = 3;
+
 /// Fits the free parameters of `model` to the dataset, from the search of starting
 /// values ([`Start::Search`]).
 pub fn fit_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, IdentError> {
@@ -769,6 +777,8 @@ fn fit_once(
                 } else {
                     usize::MAX
                 },
+                probation_jacobians: (prep.kind == DataKind::ArmMoves)
+                    .then_some(ARM_PROBATION_JACOBIANS),
             };
             let problem = Problem { cache: &cache };
             match fit_joining(&problem, &specs, &opts, &known) {

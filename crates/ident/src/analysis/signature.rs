@@ -395,6 +395,7 @@ fn fit_sweep_term(
             patience: 40,
             diff_step: 1e-6,
             max_evaluations: usize::MAX,
+            probation_jacobians: None,
         },
     )
     .map_or(initial.clone(), |r| r.values);
@@ -417,6 +418,7 @@ fn fit_sweep_term(
             patience: 8,
             diff_step: 1e-5,
             max_evaluations: usize::MAX,
+            probation_jacobians: None,
         },
     )?;
     Ok((r.values[tf.n_base..].to_vec(), r.ssr))

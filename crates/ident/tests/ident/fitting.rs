@@ -453,6 +453,7 @@ fn evaluation_budget_counts_jacobians_and_stops_at_an_accepted_point() {
     };
     let opts = FitOptions {
         max_evaluations: budget,
+        probation_jacobians: None,
         ..FitOptions::default()
     };
     let r = fit(&counted, &specs, &opts).unwrap();
