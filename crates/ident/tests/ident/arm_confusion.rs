@@ -8,7 +8,7 @@
 //! the noise floor.
 //!
 //! `#[ignore]`d for its time (each diagnosis 3-25 s in the test profile on 2 cores,
-//! about 10 min for the whole study):
+//! about 47 min for the whole study in release on 2 cores, 2026-11-27):
 //! `cargo test --workspace --test ident arm_confusion -- --ignored --nocapture`.
 //! Filters: `CONFUSION_EFFECTS=link_flexibility,control` (comma-separated effect names;
 //! `control` the controls), `CONFUSION_SETTINGS=0` (magnitude, 0 or 1),
