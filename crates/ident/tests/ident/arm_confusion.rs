@@ -7,7 +7,7 @@
 //! "none found" on >= 95% of the controls, and the NRMSE after the winner within 1.5x
 //! the noise floor.
 //!
-//! `#[ignore]`d for its time (each diagnosis 3-25 s in the test profile on 2 cores,
+//! `#[ignore]`d for its time (each diagnosis 13-160 s in release on 2 cores,
 //! about 47 min for the whole study in release on 2 cores, 2026-11-27):
 //! `cargo test --workspace --test ident arm_confusion -- --ignored --nocapture`.
 //! Filters: `CONFUSION_EFFECTS=link_flexibility,control` (comma-separated effect names;
