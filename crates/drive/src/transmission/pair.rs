@@ -3,7 +3,7 @@
 
 use longreach_rope::{RopeState, RopeStepper};
 
-use super::relay::{CompiledRelays, RelayRule, RelayState};
+use super::relay::{CompiledRelays, RelayState};
 use super::spec::{PairSpec, Tensioner};
 use crate::error::DriveError;
 
@@ -80,15 +80,6 @@ impl CompiledPair {
             relays,
             spec,
         })
-    }
-
-    /// The same pair with its relay pulleys integrated by `rule` (the default is
-    /// [`RelayRule::BackwardEuler`]).
-    pub fn with_relay_rule(mut self, rule: RelayRule) -> Self {
-        if let Some(c) = self.relays.as_mut() {
-            c.rule = rule;
-        }
-        self
     }
 
     /// `R[p] . q`, m.

@@ -157,10 +157,10 @@ fn free_oscillation_decays_like_coulomb_and_energy_never_rises() {
     let lost = e_start - e_prev;
     eprintln!("energy lost {lost:e} J, worst rise in a step {worst_rise:e} J");
     assert!(lost > 0.0);
-    // Backward Euler on the relays (`RelayRule::BackwardEuler`, the rig's rule) is
+    // Backward Euler on the relays (`RelayRule`, every plant's rule) is
     // dissipative: measured 2.4e-13 J against 0.100 J lost. (The trapezoidal rule, the
-    // arm's, gave 2.9e-10 J: at a reversal its friction torque, taken at the end rate,
-    // can do a little positive work.)
+    // arm's until 2026-11-27, gave 2.9e-10 J: at a reversal its friction torque, taken
+    // at the end rate, can do a little positive work.)
     assert!(worst_rise <= 1e-9 * lost, "energy rose by {worst_rise:e} J");
     // Successive maxima of the output angle.
     let peaks: Vec<f64> = phi

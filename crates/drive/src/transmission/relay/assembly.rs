@@ -7,7 +7,7 @@ use longreach_rope::{PreparedStep, RopeStepper};
 
 use super::factor::LocalFactor;
 use super::friction::RelayTorque;
-use super::{CompiledRelays, RelayState};
+use super::{CompiledRelays, RelayRule, RelayState};
 
 /// The motor row of the local block.
 #[derive(Debug, Clone, Copy)]
@@ -218,9 +218,8 @@ pub(crate) fn relay_residual(
     let (fa, fb) = (fs[side * ns + rl], fs[side * ns + rl + 1]);
     let psi0 = inp.state.angle_rad[rl][side];
     let w0 = inp.state.rate_rad_s[rl][side];
-    let a0 = inp.state.accel_rad_s2[rl][side];
     let dpsi = psi1[side * m + rl] - psi0;
-    let (w1, a1) = c.rule.end_rates(h, dpsi, w0, a0);
+    let (w1, a1) = RelayRule::end_rates(h, dpsi, w0);
     let t = c.friction.torque_n_m(r, fa + fb, w1);
     (
         c.friction.inertia_kg_m2 * a1 + t.torque_n_m + r * (fa - fb),
@@ -257,7 +256,7 @@ pub(crate) fn relay_slopes(
     let r = c.radius_m[rl];
     let ts = t.d_tension_sum_m;
     let (wa, wb) = (r + ts, -r + ts);
-    let (dwdp, dadp) = c.rule.slopes(h);
+    let (dwdp, dadp) = RelayRule::slopes(h);
     RelaySlopes {
         wa,
         wb,
@@ -586,12 +585,7 @@ pub(crate) fn commit(
                 state.rate_rad_s[rl][side] = dpsi / h;
                 state.accel_rad_s2[rl][side] = 0.0;
             } else {
-                let (w1, a1) = c.rule.end_rates(
-                    h,
-                    dpsi,
-                    state.rate_rad_s[rl][side],
-                    state.accel_rad_s2[rl][side],
-                );
+                let (w1, a1) = RelayRule::end_rates(h, dpsi, state.rate_rad_s[rl][side]);
                 state.rate_rad_s[rl][side] = w1;
                 state.accel_rad_s2[rl][side] = a1;
             }
@@ -619,7 +613,7 @@ pub(crate) fn begin_step(
     sc.damping.fill(1.0);
     for rl in 0..m {
         for side in 0..2 {
-            sc.psi1[side * m + rl] = c.rule.predict(
+            sc.psi1[side * m + rl] = RelayRule::predict(
                 h,
                 state.angle_rad[rl][side],
                 state.rate_rad_s[rl][side],

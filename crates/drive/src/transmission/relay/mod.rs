@@ -56,73 +56,50 @@ pub mod safeguards;
 
 pub use friction::{RelayFriction, RelayTorque};
 
-/// The time rule of the relay pulleys' rotation (the other unknowns of the step always
-/// take the trapezoidal rule).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum RelayRule {
-    /// The trapezoidal rule (Newmark average acceleration): second order, no numerical
-    /// damping; the relay pulleys' own modes (a pulley's inertia between two spans,
-    /// 100-300 Hz, kHz for light pulleys) keep whatever they are excited with. Not used
-    /// by any plant: on longreach5 with 8 kg moving j2 and light relay pulleys
-    /// (c = 0.01, 2e-5 kg*m^2) its Newton iteration diverged at t = 1.64 s (1 ms) and
-    /// 1.98 s (0.25 ms), where backward Euler runs through.
-    Trapezoidal,
-    /// Backward Euler: first order, L-stable. A sticking pulley is a very stiff damper
-    /// (the regularised friction's slope); the trapezoidal rule's amplification tends
-    /// to -1 on it, backward Euler's to 0: the relay modes, far above the band of
-    /// interest, are damped by the step instead of ringing, and the Newton iteration
-    /// starts closer. Every plant's rule: the rig's relay modes lie two decades above
-    /// its 2-4 Hz; the arm's lie above the band its sensors resolve (100-300 Hz for
-    /// the shipped 0.005 kg*m^2 pulleys, kHz for light ones). On the shipped
-    /// relay-friction arm scenario the two rules differ by at most 4e-4 rad at 0.125 ms,
-    /// ten times less than either differs from itself between 1 ms and 0.125 ms.
-    #[default]
-    BackwardEuler,
-}
+/// The time rule of the relay pulleys' rotation, backward Euler (the other unknowns of
+/// the step take the trapezoidal rule): first order, L-stable. A sticking pulley is a
+/// very stiff damper (the regularised friction's slope); the trapezoidal rule's
+/// amplification tends to -1 on it, backward Euler's to 0: the relay modes, far above
+/// the band of interest, are damped by the step instead of ringing, and the Newton
+/// iteration starts closer. The rig's relay modes lie two decades above its 2-4 Hz; the
+/// arm's lie above the band its sensors resolve (100-300 Hz for the shipped 0.005
+/// kg*m^2 pulleys, kHz for light ones).
+///
+/// The arm's relays took the trapezoidal rule until 2026-11-27: on longreach5 with 8 kg
+/// moving j2 and light relay pulleys (c = 0.01, 2e-5 kg*m^2) its Newton iteration
+/// diverged at t = 1.64 s (1 ms) and 1.98 s (0.25 ms), where backward Euler runs
+/// through. On the shipped relay-friction arm scenario the two rules differed by at
+/// most 4e-4 rad at 0.125 ms, ten times less than either differs from itself between
+/// 1 ms and 0.125 ms (docs/arm.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RelayRule;
 
 impl RelayRule {
     /// End rate and acceleration of a step of `h` that moves a relay by `dpsi` from
-    /// rate `w0` and acceleration `a0`.
+    /// rate `w0` (backward Euler needs no start acceleration).
     #[inline]
-    pub fn end_rates(self, h: f64, dpsi: f64, w0: f64, a0: f64) -> (f64, f64) {
-        match self {
-            Self::Trapezoidal => {
-                let (two_h, four_h2) = (2.0 / h, 4.0 / (h * h));
-                (two_h * dpsi - w0, four_h2 * dpsi - 2.0 * two_h * w0 - a0)
-            }
-            Self::BackwardEuler => {
-                let w1 = dpsi / h;
-                (w1, (w1 - w0) / h)
-            }
-        }
+    pub fn end_rates(h: f64, dpsi: f64, w0: f64) -> (f64, f64) {
+        let w1 = dpsi / h;
+        (w1, (w1 - w0) / h)
     }
 
     /// `(d w1 / d psi1, d a1 / d psi1)` of [`Self::end_rates`].
     #[inline]
-    pub fn slopes(self, h: f64) -> (f64, f64) {
-        match self {
-            Self::Trapezoidal => (2.0 / h, 4.0 / (h * h)),
-            Self::BackwardEuler => (1.0 / h, 1.0 / (h * h)),
-        }
+    pub fn slopes(h: f64) -> (f64, f64) {
+        (1.0 / h, 1.0 / (h * h))
     }
 
-    /// The predicted end angle of a step from `(psi0, w0, a0)`.
+    /// The predicted end angle of a step from `(psi0, w0, a0)`: the end rate
+    /// extrapolated from the last two, `w1 ~ w0 + h a0`.
     #[inline]
-    pub fn predict(self, h: f64, psi0: f64, w0: f64, a0: f64) -> f64 {
-        match self {
-            Self::Trapezoidal => psi0 + h * w0 + 0.5 * h * h * a0,
-            // The end rate extrapolated from the last two: w1 ~ w0 + h a0.
-            Self::BackwardEuler => psi0 + h * (w0 + h * a0),
-        }
+    pub fn predict(h: f64, psi0: f64, w0: f64, a0: f64) -> f64 {
+        psi0 + h * (w0 + h * a0)
     }
 
     /// The end angle at which the end rate is zero.
     #[inline]
-    pub fn at_rest(self, h: f64, psi0: f64, w0: f64) -> f64 {
-        match self {
-            Self::Trapezoidal => psi0 + 0.5 * h * w0,
-            Self::BackwardEuler => psi0,
-        }
+    pub fn at_rest(psi0: f64) -> f64 {
+        psi0
     }
 }
 
@@ -135,8 +112,6 @@ use super::spec::PairSpec;
 pub struct CompiledRelays {
     /// The friction law of every relay pulley of the pair.
     pub friction: RelayFriction,
-    /// The time rule of the relay pulleys.
-    pub rule: RelayRule,
     /// Joint each relay turns about (`None`: fixed to the base), in order along the rope.
     pub joints: Vec<Option<usize>>,
     /// Radius of each relay, m.
@@ -198,7 +173,6 @@ impl CompiledRelays {
         }
         Self {
             friction,
-            rule: RelayRule::default(),
             joints: route.iter().map(|r| r.joint).collect(),
             radius_m: route.iter().map(|r| r.radius_m).collect(),
             inv_span_length: span_length_m.iter().map(|l| 1.0 / l).collect(),

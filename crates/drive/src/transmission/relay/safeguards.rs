@@ -8,7 +8,7 @@ use longreach_rope::RopeStepper;
 use super::assembly::{
     evaluate_spans, relay_residual, relay_slopes, span_tension, Local, RelayScratch,
 };
-use super::{CompiledRelays, RelayState};
+use super::{CompiledRelays, RelayRule, RelayState};
 
 /// What [`apply_relay_update`] did.
 #[derive(Debug, Clone, Copy)]
@@ -60,7 +60,7 @@ pub(crate) fn apply_relay_update(
             let mut new = old + raw * sc.damping[k];
             if jumps_stick_band(c, h, psi0, w0, old, new) {
                 // Across the stick band: solved alone next ([`solve_crossed_relays`]).
-                new = c.rule.at_rest(h, psi0, w0);
+                new = RelayRule::at_rest(psi0);
                 sc.crossed[k] = true;
                 guarded = true;
             }
@@ -155,8 +155,8 @@ pub(crate) fn solve_crossed_relays(
 /// one plateau across the steep stick band. Such a relay is put in the band's middle,
 /// end rate zero ([`super::RelayRule::at_rest`]).
 fn jumps_stick_band(c: &CompiledRelays, h: f64, psi0: f64, w0: f64, old: f64, new: f64) -> bool {
-    let (w_old, _) = c.rule.end_rates(h, old - psi0, w0, 0.0);
-    let (w_new, _) = c.rule.end_rates(h, new - psi0, w0, 0.0);
+    let (w_old, _) = RelayRule::end_rates(h, old - psi0, w0);
+    let (w_new, _) = RelayRule::end_rates(h, new - psi0, w0);
     c.friction.coefficient > 0.0 && w_old * w_new < 0.0 && w_new.abs() > c.friction.slip_rate_rad_s
 }
 
@@ -226,7 +226,7 @@ pub(crate) fn relax_relays(
                 let old = sc.psi1[k];
                 let mut new = if dz.is_finite() { old + dz } else { old };
                 if jumps_stick_band(c, h, psi0, w0, old, new) {
-                    new = c.rule.at_rest(h, psi0, w0);
+                    new = RelayRule::at_rest(psi0);
                 }
                 sc.psi1[k] = new;
                 worst = worst.max((new - old).abs() / (tol * (1.0 + new.abs())));
