@@ -366,12 +366,14 @@ pub fn arm_diagnosis_report(
     }
     for s in &d.joint_splits {
         md.push_str(&format!(
-            "### {} per joint ({}; NRMSE {:.4} against {:.4} with one value, BIC improvement {:.1})\n\n| joints | parameter | value | 95% interval |\n|---|---|---|---|\n",
+            "### {} per {} ({}; NRMSE {:.4} against {:.4} with one value, BIC improvement {:.1})\n\n| {}s | parameter | value | 95% interval |\n|---|---|---|---|\n",
             s.effect,
+            s.per,
             if s.kept { "kept" } else { "not kept" },
             s.nrmse,
             s.nrmse_shared,
-            s.score
+            s.score,
+            s.per
         ));
         for j in &s.joints {
             for ((name, v), [lo, hi]) in j.values.iter().zip(&j.interval_95) {

@@ -743,8 +743,9 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The joints of `--effect name@j2+j5=...`, if given.
-fn effect_joints(s: &str) -> Option<Vec<String>> {
+/// Where `--effect name@j2+j5=...` acts (joints, or flexible links for an effect on a
+/// link's bending: `link_flexibility@link2=...`), if given.
+fn effect_at(s: &str) -> Option<Vec<String>> {
     let head = s.split_once('=').map_or(s, |(h, _)| h);
     head.split_once('@').map(|(_, j)| {
         j.split('+')
@@ -834,23 +835,22 @@ pub fn run_synth(a: &SynthArgs) -> Result<ExitCode> {
     };
     for s in &a.effects {
         let (e, v) = parse_effect(s)?;
-        let joints = effect_joints(s);
-        if let Some(j) = &joints {
-            if let Some((msg, fix)) = longreach_ident::model::joints_problem(e, j, &base_ds) {
+        let at = effect_at(s);
+        if let Some(j) = &at {
+            if let Some((msg, fix)) = longreach_ident::model::at_problem(e, j, &base_ds) {
                 bail!("--effect {s}: {msg}\n  fix: {fix}");
             }
         }
-        if let Some((_, at)) =
-            longreach_ident::model::joints_overlap(&model.effects, e, joints.as_deref())
+        if let Some((_, at)) = longreach_ident::model::at_overlap(&model.effects, e, at.as_deref())
         {
             bail!(
-                "--effect {s}: {} is hidden twice on {at}\n  fix: hide an effect once, or once per joint with disjoint @joints",
+                "--effect {s}: {} is hidden twice on {at}\n  fix: hide an effect once, or once per joint (link) with disjoint @joints (@links)",
                 e.name()
             );
         }
         let mut m = model.with_effect(e);
         if let Some(u) = m.effects.last_mut() {
-            u.joints = joints;
+            u.at = at;
             for (p, x) in u.params.iter_mut().zip(&v) {
                 *p = ParamDef {
                     value: *x,

@@ -458,6 +458,23 @@ impl FlexDynamics {
                     stations.m, whole.m
                 )));
             }
+            // What the beam leaves of the link must be a body: a mass distribution
+            // with a positive moment of inertia about its own centre of mass (a beam
+            // heavier near the link's end than the link is there leaves none).
+            if rest.m > 1e-9 * whole.m.max(1.0) {
+                let c = rest.h / rest.m;
+                let about_c = rest.i - skew_sq(&c) * rest.m;
+                let least = about_c.symmetric_eigenvalues().min();
+                if least < -1e-9 * whole.i.norm().max(1e-12) {
+                    return Err(err(format!(
+                        "without its beam ({:.4} kg) the link's other {:.4} kg would sit at {:.3} m along it with a negative moment of inertia ({:.4} kg*m^2): the beam carries more mass than the link has along its length; lower the mass per length or the density",
+                        stations.m,
+                        rest.m,
+                        c.dot(&ea),
+                        least
+                    )));
+                }
+            }
             let rest = rest.about(&(ea * length));
             let mut phi_l = [0.0; MAX_MODES];
             let mut dphi_l = [0.0; MAX_MODES];

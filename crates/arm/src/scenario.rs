@@ -283,6 +283,17 @@ pub struct ArmScenario {
     pub warnings: Vec<String>,
 }
 
+impl ArmScenario {
+    /// The URDF names of the flexible links ([`Self::flex_links`]), in their order.
+    pub fn flex_link_names(&self) -> Vec<String> {
+        let links = &self.arm.spec().links;
+        self.flex_links
+            .iter()
+            .filter_map(|f| links.get(f.link).map(|l| l.name.clone()))
+            .collect()
+    }
+}
+
 /// Merges `defaults` into `t` (keys absent from `t`; nested tables recursively).
 fn merge(t: &mut toml::Table, defaults: &toml::Table) {
     for (k, v) in defaults {

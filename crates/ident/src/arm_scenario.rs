@@ -14,8 +14,10 @@
 //!   same name at those joints (its `[[effect]]` entries there are dropped or narrowed,
 //!   a transmission's `effects` entry dropped), as the plant replaces it; any other
 //!   effect the scenario already holds is refused (the two would add);
-//! - effects on a link's bending (`link_flexibility`): appended to every flexible
-//!   link's `[[flex]]` effects, after the scenario's own;
+//! - effects on a link's bending (`link_flexibility`): appended to the `[[flex]]`
+//!   effects of every flexible link, or of the links the model restricts it to (a link
+//!   that only `link = "*"` covers gets an entry of its own, a copy of that one), after
+//!   the scenario's own;
 //! - the payload (`payload_mass`): an `[[effect]]`, a payload the servos are not told
 //!   of, as in the model;
 //! - effects on sensor channels: not part of the arm; listed in the header comment.
@@ -133,7 +135,7 @@ fn effect_table(u: &EffectUse, with_joints: bool) -> toml::Table {
         "params".into(),
         toml::Value::Array(u.params.iter().map(|p| p.value.into()).collect()),
     );
-    if let (true, Some(j)) = (with_joints, &u.joints) {
+    if let (true, Some(j)) = (with_joints, &u.at) {
         t.insert(
             "joints".into(),
             toml::Value::Array(j.iter().map(|n| n.as_str().into()).collect()),
@@ -177,8 +179,11 @@ fn scale_k1(doc: &mut toml::Table, scale: f64) -> Result<(), String> {
     Ok(())
 }
 
-/// Appends `u` to the effects of every flexible link (`[[flex]]` entries not
-/// `rigid`), after the entry's own (or its defaults').
+/// Appends `u` to the effects of the flexible links it acts on (`[[flex]]` entries not
+/// `rigid`), after the entry's own (or its defaults'): every entry when `u` acts on
+/// every flexible link; else the entries of its links, and for a link that only
+/// `link = "*"` covers, a copy of that entry naming the link (a link's own entry wins
+/// over `"*"`, so the copy takes the link out of `"*"` with the same numbers).
 fn add_to_flex(doc: &mut toml::Table, u: &EffectUse) -> Result<(), String> {
     let defaults = doc
         .get("flex_defaults")
@@ -194,10 +199,39 @@ fn add_to_flex(doc: &mut toml::Table, u: &EffectUse) -> Result<(), String> {
                 u.effect.name()
             )
         })?;
-    for t in flex.iter_mut().filter_map(|t| t.as_table_mut()) {
-        if t.get("rigid").and_then(|r| r.as_bool()) == Some(true) {
-            continue;
+    let link_of = |t: &toml::Value| t.get("link").and_then(|l| l.as_str()).map(str::to_string);
+    let rigid = |t: &toml::Value| t.get("rigid").and_then(|r| r.as_bool()) == Some(true);
+    // (links named by entries of their own; those "*" covers get a copy)
+    let own: Vec<String> = flex
+        .iter()
+        .filter_map(link_of)
+        .filter(|l| l != "*")
+        .collect();
+    let mut copies = Vec::new();
+    if let Some(names) = &u.at {
+        for t in flex
+            .iter()
+            .filter(|t| link_of(t).as_deref() == Some("*") && !rigid(t))
+        {
+            for n in names.iter().filter(|n| !own.contains(n)) {
+                let mut c = t.clone();
+                if let Some(c) = c.as_table_mut() {
+                    c.insert("link".into(), n.as_str().into());
+                }
+                copies.push(c);
+            }
         }
+    }
+    flex.extend(copies);
+    let acts_on = |t: &toml::Value| match (&u.at, link_of(t)) {
+        (None, _) => true,
+        (Some(names), Some(l)) => names.contains(&l),
+        (Some(_), None) => false,
+    };
+    for t in flex.iter_mut().filter(|t| !rigid(t) && acts_on(t)) {
+        let Some(t) = t.as_table_mut() else {
+            continue;
+        };
         let mut list = t
             .get("effects")
             .cloned()
@@ -217,7 +251,7 @@ fn add_to_flex(doc: &mut toml::Table, u: &EffectUse) -> Result<(), String> {
 /// effect the scenario already holds there is refused.
 fn make_room(doc: &mut toml::Table, u: &EffectUse, driven: &[String]) -> Result<(), String> {
     let name = u.effect.name();
-    let covers = |j: &str| u.joints.as_ref().is_none_or(|js| js.iter().any(|x| x == j));
+    let covers = |j: &str| u.at.as_ref().is_none_or(|js| js.iter().any(|x| x == j));
     let replaces = matches!(u.effect.site(), Site::Joint | Site::Motor);
     let refuse = |where_: &str| {
         format!(

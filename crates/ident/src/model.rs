@@ -161,10 +161,11 @@ pub struct PlantParams {
     pub base: Vec<(BaseParam, f64)>,
     /// The rope-law effects (already applied to `law`), for the same plants.
     pub rope_effects: Vec<Applied>,
-    /// For each of [`Self::effects`], the driven joints it is restricted to (an arm's
-    /// per-joint values, [`EffectUse::joints`]); `None`: every joint. A rope-law effect
-    /// restricted to some joints is in `effects`, not applied to `law`.
-    pub effect_joints: Vec<Option<Vec<String>>>,
+    /// For each of [`Self::effects`], where on an arm it is restricted to
+    /// ([`EffectUse::at`]: driven joints, or flexible links for an effect on a link's
+    /// bending); `None`: everywhere. A rope-law effect restricted to some joints is in
+    /// `effects`, not applied to `law`.
+    pub effect_at: Vec<Option<Vec<String>>>,
 }
 
 impl ParamDef {
@@ -203,17 +204,20 @@ pub struct EffectUse {
     /// Its shape-free form, when the model holds the effect's law as a table
     /// ([`longreach_drive::effects::Shape`]); the parameters it replaces are held.
     pub shape: Option<ShapeUse>,
-    /// On an arm, the driven joints (names, as the dataset's columns) whose pairs and
-    /// bearings take these values; `None`: every driven joint. The same effect may be
-    /// in a model several times, on disjoint joints: its values per joint.
-    pub joints: Option<Vec<String>>,
+    /// On an arm, where these values act: the driven joints (names, as the dataset's
+    /// columns) whose pairs and bearings take them, or for an effect on a link's
+    /// bending ([`longreach_drive::effects::bends_links`]) the flexible links (URDF
+    /// names); `None`: every driven joint, or every flexible link. The same effect may
+    /// be in a model several times, on disjoint joints or links: its values per joint
+    /// or per link. In model files the list is `joints` or `links` ([`at_key`]).
+    pub at: Option<Vec<String>>,
 }
 
 impl EffectUse {
     /// The effect's name with its joints when it is restricted to some
     /// (`joint_friction@j2+j5`): how its parameters are named in fits and reports.
     pub fn label(&self) -> String {
-        match &self.joints {
+        match &self.at {
             None => self.effect.name().to_string(),
             Some(j) => format!("{}@{}", self.effect.name(), j.join("+")),
         }
@@ -222,7 +226,7 @@ impl EffectUse {
     /// The fitted name of parameter `p` of this effect: `p`'s own, with `@joints` when
     /// the effect is restricted to some.
     pub fn param_name(&self, p: &ParamDef) -> String {
-        match &self.joints {
+        match &self.at {
             None => p.name.clone(),
             Some(j) => format!("{}@{}", p.name, j.join("+")),
         }
@@ -623,7 +627,7 @@ impl Model {
             effects: Vec::new(),
             base: Vec::new(),
             rope_effects: Vec::new(),
-            effect_joints: Vec::new(),
+            effect_at: Vec::new(),
         };
         for b in &self.base {
             if let Role::Base(param) = b.role {
@@ -644,7 +648,7 @@ impl Model {
                 effect: u.effect.name(),
                 source,
             })?;
-            if u.effect.site() == Site::RopeLaw && u.joints.is_none() {
+            if u.effect.site() == Site::RopeLaw && u.at.is_none() {
                 applied
                     .apply_to_law(&mut p.law)
                     .map_err(|source| ModelError::Effect {
@@ -654,7 +658,7 @@ impl Model {
                 p.rope_effects.push(applied);
             } else {
                 p.effects.push(applied);
-                p.effect_joints.push(u.joints.clone());
+                p.effect_at.push(u.at.clone());
             }
         }
         p.law.validate()?;
@@ -690,7 +694,7 @@ impl Model {
                 })
                 .collect(),
             shape: None,
-            joints: None,
+            at: None,
         });
         m
     }
@@ -853,9 +857,9 @@ impl Model {
         }
         for u in &self.effects {
             s.push_str(&format!("\n[[effect]]\nname = \"{}\"\n", u.effect.name()));
-            if let Some(j) = &u.joints {
+            if let Some(j) = &u.at {
                 let list: Vec<String> = j.iter().map(|n| format!("\"{n}\"")).collect();
-                s.push_str(&format!("joints = [{}]\n", list.join(", ")));
+                s.push_str(&format!("{} = [{}]\n", at_key(u.effect), list.join(", ")));
             }
             for p in &u.params {
                 param(&mut s, "effect.params", &u.param_name(p), p);
@@ -1061,29 +1065,38 @@ impl Model {
                     ps.push(p);
                 }
                 let shape = parse_shape(text, file, &path, effect, t)?;
-                let joints = parse_joints(text, file, &path, effect, t, ds)?;
+                let at = parse_at(text, file, &path, effect, t, ds)?;
                 for k in t.keys() {
-                    if !["name", "params", "shape", "joints"].contains(&k.as_str()) {
+                    if !["name", "params", "shape", "joints", "links"].contains(&k.as_str()) {
                         return Err(err(
                             &format!("{path}.{k}"),
                             format!("unknown key `{k}` in an [[effect]]"),
-                            "an [[effect]] holds name, joints (arms), [effect.params.NAME] and [effect.shape] (docs/models.md)",
+                            "an [[effect]] holds name, joints or links (arms), [effect.params.NAME] and [effect.shape] (docs/models.md)",
                         ));
                     }
                 }
-                // The same effect twice: on disjoint joints only (its values per joint).
-                if let Some((j, at)) = joints_overlap(&effects_out, effect, joints.as_deref()) {
+                // The same effect twice: on disjoint joints or links only (its values per
+                // joint or per link).
+                if let Some((j, on)) = at_overlap(&effects_out, effect, at.as_deref()) {
                     return Err(err(
                         &path,
-                        format!("effect `{name}` is given twice on {at} (also [[effect]] {j})"),
-                        "give an effect once, or once per joint with disjoint `joints` lists",
+                        format!("effect `{name}` is given twice on {on} (also [[effect]] {j})"),
+                        &format!(
+                            "give an effect once, or once per {} with disjoint `{}` lists",
+                            if at_key(effect) == "links" {
+                                "link"
+                            } else {
+                                "joint"
+                            },
+                            at_key(effect)
+                        ),
                     ));
                 }
                 effects_out.push(EffectUse {
                     effect,
                     params: ps,
                     shape: None,
-                    joints,
+                    at,
                 });
                 if let Some(sh) = shape {
                     let last = effects_out.len() - 1;
@@ -1111,27 +1124,40 @@ impl Model {
     }
 }
 
+/// The model-file key that restricts `effect` on an arm ([`EffectUse::at`]): `links`
+/// for an effect on a link's bending, `joints` for every other.
+pub fn at_key(effect: &'static dyn Effect) -> &'static str {
+    if effects::bends_links(effect) {
+        "links"
+    } else {
+        "joints"
+    }
+}
+
 /// Why `names` cannot restrict `effect` on `ds` (message, fix), if it cannot: only on
-/// arm datasets, not for an effect on a link or a sensor, a non-empty list of joints
-/// the arm drives, each once.
-pub fn joints_problem(
-    effect: &dyn Effect,
+/// arm datasets; an effect on a link's bending on flexible links of the dataset's arm
+/// scenario, an effect at joints, motors, pairs or rope laws on joints the arm drives
+/// (not an effect on the payload or a sensor); a non-empty list, each name once.
+pub fn at_problem(
+    effect: &'static dyn Effect,
     names: &[String],
     ds: &Dataset,
 ) -> Option<(String, String)> {
+    let key = at_key(effect);
     let DatasetKind::ArmMoves(am) = &ds.kind else {
         return Some((
-            "`joints` applies to arm datasets (arm_moves) only".into(),
-            "remove `joints`: the rig has one joint".into(),
+            format!("`{key}` applies to arm datasets (arm_moves) only"),
+            format!("remove `{key}`: the rig has one joint and no flexible link"),
         ));
     };
-    if matches!(effect.site(), Site::Link | Site::Sensor) {
+    let bends = key == "links";
+    if !bends && matches!(effect.site(), Site::Link | Site::Sensor) {
         return Some((
             format!(
                 "effect `{}` acts on {}, not at joints",
                 effect.name(),
                 if effect.site() == Site::Link {
-                    "links"
+                    "the payload"
                 } else {
                     "sensor channels"
                 }
@@ -1139,62 +1165,106 @@ pub fn joints_problem(
             "remove `joints` from this effect".into(),
         ));
     }
-    let driven = am.joints.join(", ");
+    let (known, example) = if bends {
+        (&am.flex_links, "link2")
+    } else {
+        (&am.joints, "j2")
+    };
+    let listed = if known.is_empty() {
+        "none".to_string()
+    } else {
+        known.join(", ")
+    };
     if names.is_empty() {
         return Some((
-            "must be a non-empty list of joint names".into(),
-            format!("write joints = [\"j2\"] with joints the arm drives: {driven}"),
+            format!("must be a non-empty list of {key}"),
+            format!("write {key} = [\"{example}\"] with names of: {listed}"),
         ));
     }
     for (i, n) in names.iter().enumerate() {
-        if !am.joints.contains(n) {
-            return Some((
-                format!("joint `{n}` is not driven by the dataset's arm"),
-                format!("use joints the arm drives: {driven}"),
-            ));
+        if !known.contains(n) {
+            return Some(if bends {
+                (
+                    format!("link `{n}` is not a flexible link of the dataset's arm scenario ([[flex]])"),
+                    format!("use its flexible links: {listed}"),
+                )
+            } else {
+                (
+                    format!("joint `{n}` is not driven by the dataset's arm"),
+                    format!("use joints the arm drives: {listed}"),
+                )
+            });
         }
         if names[..i].contains(n) {
-            return Some((
-                format!("joint `{n}` is listed twice"),
-                "list each joint once".into(),
-            ));
+            return Some((format!("`{n}` is listed twice"), "list each once".into()));
         }
     }
     None
 }
 
-/// Where `effect` on `joints` (`None`: every joint) overlaps a use of the same effect
-/// among `uses`: that use's index and the joint (or "every joint").
-pub fn joints_overlap(
+/// Where `effect` at `at` (`None`: everywhere) overlaps a use of the same effect among
+/// `uses`: that use's index and the joint or link (or "every joint" / "every link").
+pub fn at_overlap(
     uses: &[EffectUse],
-    effect: &dyn Effect,
-    joints: Option<&[String]>,
+    effect: &'static dyn Effect,
+    at: Option<&[String]>,
 ) -> Option<(usize, String)> {
     uses.iter().enumerate().find_map(|(j, other)| {
         if !effects::same(other.effect, effect) {
             return None;
         }
-        match (other.joints.as_deref(), joints) {
+        match (other.at.as_deref(), at) {
             (Some(a), Some(b)) => a.iter().find(|x| b.contains(x)).map(|x| (j, x.clone())),
-            _ => Some((j, "every joint".to_string())),
+            _ => Some((
+                j,
+                if at_key(effect) == "links" {
+                    "every link"
+                } else {
+                    "every joint"
+                }
+                .to_string(),
+            )),
         }
     })
 }
 
-/// The `joints` list of effect `effect` at `path` in a model file, if any
-/// ([`joints_problem`]).
-fn parse_joints(
+/// The `joints` or `links` list ([`at_key`]) of effect `effect` at `path` in a model
+/// file, if any ([`at_problem`]); the other key is refused.
+fn parse_at(
     text: &str,
     file: &str,
     path: &str,
-    effect: &dyn Effect,
+    effect: &'static dyn Effect,
     t: &toml::Table,
     ds: &Dataset,
 ) -> Result<Option<Vec<String>>, ModelError> {
-    let Some(v) = t.get("joints") else {
+    let key = at_key(effect);
+    let other = if key == "links" { "joints" } else { "links" };
+    if t.contains_key(other) {
+        let field = format!("{path}.{other}");
+        let (msg, fix) = if key == "links" {
+            (
+                format!(
+                    "effect `{}` acts on flexible links, not at joints",
+                    effect.name()
+                ),
+                "write links = [\"link2\"] with links of the scenario's [[flex]]",
+            )
+        } else {
+            (
+                format!(
+                    "effect `{}` does not act on a link's bending",
+                    effect.name()
+                ),
+                "write joints = [\"j2\"] with joints the arm drives, or remove `links`",
+            )
+        };
+        return Err(ModelError::File(field_error(text, file, &field, msg, fix)));
+    }
+    let Some(v) = t.get(key) else {
         return Ok(None);
     };
-    let field = format!("{path}.joints");
+    let field = format!("{path}.{key}");
     let err = |msg: String, fix: &str| ModelError::File(field_error(text, file, &field, msg, fix));
     let names: Vec<String> = v
         .as_array()
@@ -1205,11 +1275,14 @@ fn parse_joints(
         })
         .ok_or_else(|| {
             err(
-                "must be a list of joint names".into(),
-                "write joints = [\"j2\"] with joints the arm drives",
+                "must be a list of names".to_string(),
+                &format!(
+                    "write {key} = [\"{}\"]",
+                    if key == "links" { "link2" } else { "j2" }
+                ),
             )
         })?;
-    match joints_problem(effect, &names, ds) {
+    match at_problem(effect, &names, ds) {
         Some((msg, fix)) => Err(err(msg, &fix)),
         None => Ok(Some(names)),
     }

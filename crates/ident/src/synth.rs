@@ -525,6 +525,7 @@ pub fn arm_plan(opt: &ArmMovesOptions) -> Result<crate::Dataset, IdentError> {
             scenario: "arm.toml".into(),
             scenario_path: opt.scenario.clone(),
             joints,
+            flex_links: sc.flex_link_names(),
             rope,
             runs,
         }),

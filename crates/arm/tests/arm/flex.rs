@@ -506,4 +506,22 @@ fn flex_entries_parse_and_name_their_errors() {
         assert_eq!(e.field, field, "{extra}: {e}");
         assert!(e.line.is_some() && !e.fix.is_empty(), "{e}");
     }
+    // A beam lighter than its link but heavier along it than the link is: link5's
+    // 3.72 kg tube carries a 5 kg payload at its end; a 0.16 m tube (4.95 kg over its
+    // 1.8 m) leaves the other 3.77 kg at 2.09 m, past the link's end, which only a
+    // negative moment of inertia about that point could give (it once went NaN at the
+    // first step).
+    let e = parse(
+        "[[flex]]\nlink = \"link5\"\nyoungs_modulus_pa = 110e9\nouter_diameter_m = 0.16\n\
+         inner_diameter_m = 0.153\ndensity_kg_m3 = 1600.0\n",
+    )
+    .unwrap_err();
+    assert_eq!(e.field, "flex.0", "{e}");
+    assert!(e.to_string().contains("negative moment of inertia"), "{e}");
+    // The shipped tube on it (3.718 kg, the URDF's) is one.
+    parse(
+        "[[flex]]\nlink = \"link5\"\nyoungs_modulus_pa = 110e9\nouter_diameter_m = 0.14\n\
+         inner_diameter_m = 0.134\ndensity_kg_m3 = 1600.0\n",
+    )
+    .unwrap();
 }

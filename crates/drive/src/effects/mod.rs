@@ -403,6 +403,19 @@ pub fn same(a: &dyn Effect, b: &dyn Effect) -> bool {
     a.name() == b.name()
 }
 
+/// Whether `effect` acts on a flexible link's bending (its [`Effect::on_link`] hook,
+/// probed with its default values): such an effect acts on links, not on the payload.
+pub fn bends_links(effect: &'static dyn Effect) -> bool {
+    let values = effect.params().iter().map(|p| p.default).collect();
+    let mut probe = LinkBending {
+        ei_n_m2: 1.0,
+        damping_ratio: 0.0,
+    };
+    Applied::new(effect, values)
+        .and_then(|a| a.apply_to_link(&mut probe))
+        .unwrap_or(false)
+}
+
 /// Checks that `values` has one finite value per parameter, within bounds.
 pub fn check(effect: &dyn Effect, values: &[f64]) -> Result<(), DriveError> {
     let params = effect.params();

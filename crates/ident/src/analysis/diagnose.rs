@@ -340,7 +340,7 @@ fn refine_or_note(
 /// The best candidate refined when it leaves the data above [`REFINE_MARGIN`]: its law
 /// in its shape-free form ([`refine_shape`]) and, on an arm, an effect at the joints or
 /// motors with its values per joint ([`split_per_joint`]: a shoulder's bearing is not a
-/// wrist's). The law is refined only when the split leaves the data above the margin
+/// wrist's), an effect on a link's bending with its values per flexible link. The law is refined only when the split leaves the data above the margin
 /// too, and the better of the two by BIC is kept; the candidate is then scored again.
 fn refine_winner(
     prep: &Prepared<'_>,
@@ -404,7 +404,7 @@ fn split_or_note(
         Ok(r) => r,
         Err(err) => {
             notes.push(format!(
-                "Giving {name} its values per joint failed: {err}. "
+                "Giving {name} its values per joint or link failed: {err}. "
             ));
             None
         }
@@ -427,8 +427,9 @@ fn describe_split(s: &JointSplit) -> String {
         })
         .collect();
     format!(
-        "{} with its values per joint: {}{}; NRMSE {:.4} against {:.4} with one value for every joint (BIC improvement {:.1}): {}. ",
+        "{} with its values per {}: {}{}; NRMSE {:.4} against {:.4} with one value for every {} (BIC improvement {:.1}): {}. ",
         s.effect,
+        s.per,
         each.join("; "),
         if s.held.is_empty() {
             String::new()
@@ -437,6 +438,7 @@ fn describe_split(s: &JointSplit) -> String {
         },
         s.nrmse,
         s.nrmse_shared,
+        s.per,
         s.score,
         if s.kept { "kept" } else { "not kept" }
     )

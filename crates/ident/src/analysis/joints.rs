@@ -1,13 +1,19 @@
-//! Per-joint values of an arm effect: an effect at the joints or motors of an arm
-//! (`joint_friction`, `motor_friction`) fitted with the same values at every driven
-//! joint, split into one use per joint that the data move, each with its own values.
+//! Per-joint and per-link values of an arm effect: an effect at the joints or motors of
+//! an arm (`joint_friction`, `motor_friction`) fitted with the same values at every
+//! driven joint, split into one use per joint that the data move, each with its own
+//! values; an effect on a link's bending (`link_flexibility`) fitted with the same
+//! values on every flexible link, split into one use per flexible link.
 //!
 //! Real arms do not carry the same bearing at every joint: a shoulder's is larger than a
-//! wrist's. A shared value fitted to moves of several joints is a compromise that
-//! leaves each of them off, and the residual of such a compromise looks like a missing
-//! effect. The split is tried when the winner's catalog law leaves the data above
-//! [`super::REFINE_MARGIN`] ([`super::diagnose`]):
+//! wrist's; nor the same tube in every link. A shared value fitted to moves of several
+//! joints (to the modes of several links) is a compromise that leaves each of them off,
+//! and the residual of such a compromise looks like a missing effect. The split is
+//! tried when the winner's catalog law leaves the data above [`super::REFINE_MARGIN`]
+//! ([`super::diagnose`]):
 //!
+//! * **Which links**: every flexible link of the scenario (`[[flex]]`) gets its own use
+//!   (`links = ["linkK"]`), each from the shared fit's values. Fewer than two flexible
+//!   links: nothing to split.
 //! * **Which joints**: every driven joint whose command changes in at least one run gets
 //!   its own use of the effect (`joints = ["jK"]`); the joints no run moves share one
 //!   (they still turn a little under the others' moves, through the ropes' give, and
@@ -17,9 +23,9 @@
 //! * **Fit**: every free parameter of the model with the per-joint values together, by
 //!   least squares from the shared fit ([`fit_model_from`], [`Start::Own`]).
 //! * **Kept** when its Bayesian information criterion beats the shared fit's by
-//!   [`MIN_SCORE`] (every per-joint value counted as a parameter).
+//!   [`MIN_SCORE`] (every per-joint or per-link value counted as a parameter).
 
-use longreach_drive::effects::Site;
+use longreach_drive::effects::{bends_links, Site};
 use serde::Serialize;
 
 use super::diagnose::MIN_SCORE;
@@ -30,10 +36,11 @@ use crate::dataset::DatasetKind;
 use crate::error::IdentError;
 use crate::model::EffectUse;
 
-/// The values of one joint after a split.
+/// The values of one joint (or link) after a split.
 #[derive(Debug, Clone, Serialize)]
 pub struct JointValues {
-    /// The joint (the dataset's column name), or the joints no run moves joined by `+`.
+    /// The joint (the dataset's column name), or the joints no run moves joined by `+`;
+    /// for a split per link, the flexible link (its URDF name).
     pub joint: String,
     /// `(parameter, value)` in the effect's order.
     pub values: Vec<(String, f64)>,
@@ -42,11 +49,13 @@ pub struct JointValues {
     pub interval_95: Vec<[f64; 2]>,
 }
 
-/// The outcome of splitting an effect's values per joint.
+/// The outcome of splitting an effect's values per joint (or per flexible link).
 #[derive(Debug, Clone, Serialize)]
 pub struct JointSplit {
     /// The effect split.
     pub effect: String,
+    /// What each use covers: `"joint"`, or `"link"` for an effect on a link's bending.
+    pub per: &'static str,
     /// Its shared values, `(parameter, value)`.
     pub shared: Vec<(String, f64)>,
     /// The values of every moved joint, then those the joints no run moves share.
@@ -63,10 +72,11 @@ pub struct JointSplit {
     pub kept: bool,
 }
 
-/// Whether effect `u` can take values per joint: an effect at joints or at motors, not
-/// yet restricted to some joints.
+/// Whether effect `u` can take values per joint (an effect at joints or at motors) or
+/// per flexible link (an effect on a link's bending), not yet restricted.
 pub fn splittable(u: &EffectUse) -> bool {
-    u.joints.is_none() && matches!(u.effect.site(), Site::Joint | Site::Motor)
+    u.at.is_none()
+        && (matches!(u.effect.site(), Site::Joint | Site::Motor) || bends_links(u.effect))
 }
 
 /// The driven joints of an arm dataset whose command changes in at least one run, and
@@ -89,10 +99,10 @@ pub fn moved_joints(prep: &Prepared<'_>) -> (Vec<String>, Vec<String>) {
     (names(moved), names(held))
 }
 
-/// Splits effect number `e` of the fitted model `fitted` into values per moved joint
-/// (module docs). `None` when the dataset is not an arm's, the effect is not
-/// [`splittable`] or fewer than two joints move. The returned [`Fitted`] is the split
-/// model when kept, else `fitted`.
+/// Splits effect number `e` of the fitted model `fitted` into values per moved joint,
+/// or per flexible link (module docs). `None` when the dataset is not an arm's, the
+/// effect is not [`splittable`] or fewer than two joints move (fewer than two links
+/// bend). The returned [`Fitted`] is the split model when kept, else `fitted`.
 pub fn split_per_joint(
     prep: &Prepared<'_>,
     fitted: &Fitted,
@@ -104,7 +114,15 @@ pub fn split_per_joint(
     if !splittable(u) {
         return Ok(None);
     }
-    let (moved, held) = moved_joints(prep);
+    let per_link = bends_links(u.effect);
+    let (moved, held) = if per_link {
+        match &prep.ds.kind {
+            DatasetKind::ArmMoves(am) => (am.flex_links.clone(), Vec::new()),
+            _ => (Vec::new(), Vec::new()),
+        }
+    } else {
+        moved_joints(prep)
+    };
     if moved.len() < 2 {
         return Ok(None);
     }
@@ -121,13 +139,13 @@ pub fn split_per_joint(
     let mut uses: Vec<EffectUse> = moved
         .iter()
         .map(|j| EffectUse {
-            joints: Some(vec![j.clone()]),
+            at: Some(vec![j.clone()]),
             ..start.clone()
         })
         .collect();
     if !held.is_empty() {
         uses.push(EffectUse {
-            joints: Some(held.clone()),
+            at: Some(held.clone()),
             ..start.clone()
         });
     }
@@ -148,7 +166,7 @@ pub fn split_per_joint(
     let joints = f.model.effects[e..e + n_uses]
         .iter()
         .map(|u| JointValues {
-            joint: u.joints.as_deref().unwrap_or_default().join("+"),
+            joint: u.at.as_deref().unwrap_or_default().join("+"),
             values: u.params.iter().map(|p| (p.name.clone(), p.value)).collect(),
             interval_95: u
                 .params
@@ -168,6 +186,7 @@ pub fn split_per_joint(
     );
     let split = JointSplit {
         effect: shared.effect.name().to_string(),
+        per: if per_link { "link" } else { "joint" },
         shared: shared
             .params
             .iter()

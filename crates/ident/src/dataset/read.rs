@@ -531,6 +531,7 @@ fn load_arm_moves(doc: &TomlDoc, dir: &Path) -> Result<ArmMovesDataset, DatasetE
         scenario,
         scenario_path,
         joints,
+        flex_links: arm.flex_link_names(),
         rope,
         runs,
     })

@@ -374,6 +374,10 @@ pub struct ArmMovesDataset {
     /// The joints the scenario drives (one rope pair each), in the order of its
     /// transmissions: the `J` of every per-joint column.
     pub joints: Vec<String>,
+    /// The flexible links of the scenario (`[[flex]]`, URDF names, in the arm's link
+    /// order): where an effect on a link's bending may be restricted
+    /// ([`crate::model::EffectUse::at`]). Empty for a rigid arm.
+    pub flex_links: Vec<String>,
     /// The rope of the scenario's first transmission (the model's rope: its `k1_scale`
     /// and rope-law effects act on every pair's own law).
     pub rope: String,

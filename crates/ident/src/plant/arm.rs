@@ -16,7 +16,8 @@
 //! - sensor-site effects act on the channels they name;
 //! - link-site effects that act on a link's bending (`link_flexibility`) act on every
 //!   flexible link of the scenario (`[[flex]]`, the scenario's own link effects kept),
-//!   and are refused on an arm without flexible links (no `E I` to scale);
+//!   or only on the links a model's effect is restricted to (`links`: its values per
+//!   link), and are refused on an arm without flexible links (no `E I` to scale);
 //! - link-site effects that change the payload (`payload_mass`) change each run's
 //!   payload (the scenario's `[payload]` mass, or the run's `payload_kg`) at the
 //!   scenario's payload point (`[payload]` link and offset; the tip frame's origin
@@ -36,6 +37,7 @@ use std::borrow::Cow;
 
 use longreach_arm::scenario::{self, ArmScenario};
 use longreach_arm::{ArmSpec, Command, DrivenArm, DrivenState};
+pub use longreach_drive::effects::bends_links;
 use longreach_drive::effects::{Applied, Argument, DataKind, Effect, LinkBending, Site};
 use longreach_drive::transmission::PairSpec;
 use longreach_drive::InputSignal;
@@ -219,10 +221,10 @@ impl<'a> ArmPlant<'a> {
             message,
         };
         let parts = self.parts[run].as_ref().map_err(|m| err(m.clone()))?;
-        // An effect restricted to some joints ([`PlantParams::effect_joints`]) acts at
+        // An effect restricted to some joints ([`PlantParams::effect_at`]) acts at
         // the pairs and bearings of those joints only.
         let at = |i: usize, joint: usize| -> bool {
-            match params.effect_joints.get(i).and_then(Option::as_ref) {
+            match params.effect_at.get(i).and_then(Option::as_ref) {
                 None => true,
                 Some(names) => names.contains(&parts.spec.joints[joint].name),
             }
@@ -235,7 +237,7 @@ impl<'a> ArmPlant<'a> {
                 effects: Vec::new(),
                 base: Vec::new(),
                 rope_effects: Vec::new(),
-                effect_joints: Vec::new(),
+                effect_at: Vec::new(),
             };
             for &(b, v) in &params.base {
                 b.apply(v, &mut p).map_err(|e| err(e.to_string()))?;
@@ -271,10 +273,11 @@ impl<'a> ArmPlant<'a> {
             }
         }
         let mut flex_links = parts.flex_links.clone();
-        for a in params
+        for (i, a) in params
             .effects
             .iter()
-            .filter(|a| a.effect.site() == Site::Link)
+            .enumerate()
+            .filter(|(_, a)| a.effect.site() == Site::Link)
         {
             if !bends_links(a.effect) {
                 continue;
@@ -282,7 +285,16 @@ impl<'a> ArmPlant<'a> {
             if flex_links.is_empty() {
                 return Err(err(rigid_arm_reason(a.effect.name())));
             }
-            for l in &mut flex_links {
+            // (restricted to some links: those links only, [`PlantParams::effect_at`])
+            let on = |l: &longreach_arm::FlexLinkSpec| match params.effect_at.get(i) {
+                Some(Some(names)) => parts
+                    .spec
+                    .links
+                    .get(l.link)
+                    .is_some_and(|x| names.contains(&x.name)),
+                _ => true,
+            };
+            for l in flex_links.iter_mut().filter(|l| on(l)) {
                 let mut b = LinkBending {
                     ei_n_m2: l.ei_n_m2,
                     damping_ratio: l.damping_ratio,
@@ -346,19 +358,6 @@ fn payload_changed(parts: &ArmParts, params: &PlantParams) -> Result<Option<ArmS
     spec.add_point_mass(frame, delta_kg, *offset)
         .map_err(|e| e.to_string())?;
     Ok(Some(spec))
-}
-
-/// Whether `effect` acts on a flexible link's bending (its `on_link` hook, probed
-/// with its default values).
-pub fn bends_links(effect: &'static dyn Effect) -> bool {
-    let values = effect.params().iter().map(|p| p.default).collect();
-    let mut probe = LinkBending {
-        ei_n_m2: 1.0,
-        damping_ratio: 0.0,
-    };
-    Applied::new(effect, values)
-        .and_then(|a| a.apply_to_link(&mut probe))
-        .unwrap_or(false)
 }
 
 /// Why a link-bending effect has nothing to act on in an arm without flexible links.

@@ -778,6 +778,7 @@ fn arm_argument_samples_follow_the_motion() {
 /// the hidden law. Release CLI: 23 s wall, 1.05x the floor; before the arm gave its
 /// rates to the refinement it could not refine (none found, lead at 14x).
 #[test]
+#[ignore = "two minutes on 2 cores (test profile, AMD EPYC, 2026-11-28: 129 s wall, 244 s CPU): run with `cargo test --workspace --test ident arm_diagnose_refines -- --ignored`"]
 fn arm_diagnose_refines_a_stribeck_joint_friction() {
     use longreach_ident::analysis::{diagnose, prepared_at_step};
     let hidden = ([0.0, 0.01, 0.03, 0.08, 0.2], [2.0, 1.8, 1.3, 1.0, 1.0]);
@@ -875,10 +876,7 @@ fn a_model_restricts_an_effect_to_joints() {
     let ds = two_joint_moves(dir.path(), PER_JOINT_TRUTH, 0.5, 3.0);
     let m = Model::from_toml(PER_JOINT_TRUTH, "truth.toml", &ds).unwrap();
     assert_eq!(m.effects.len(), 2);
-    assert_eq!(
-        m.effects[1].joints.as_deref(),
-        Some(&["j5".to_string()][..])
-    );
+    assert_eq!(m.effects[1].at.as_deref(), Some(&["j5".to_string()][..]));
     // The fitted names carry the joints; the file round-trips them.
     let names: Vec<String> = m.named_values().into_iter().map(|(n, _)| n).collect();
     assert!(names.contains(&"coulomb_n_m@j2".to_string()), "{names:?}");

@@ -4,6 +4,7 @@
 
 mod arm;
 mod arm_confusion;
+mod arm_links;
 mod cyclic;
 mod dataset_errors;
 mod diagnose_loop;
