@@ -1321,7 +1321,11 @@ fn write_law_figure(dir: &Path, r: &analysis::ShapeRefinement, md: &mut String) 
         width_px: 1000,
         height_px: 500,
     };
-    let name = format!("law_{}.png", r.effect);
+    // (`joint_friction@j2+j5`: a table per joint, named without `@` and `+`)
+    let name = format!(
+        "law_{}.png",
+        r.effect.replace('@', "_at_").replace('+', "_")
+    );
     write_atomic_with(&dir.join(&name), |p| Ok(write_png(&fig, p)?))?;
     md.push_str(&format!(
         "\n### The law of {} refined\n\n![{name}]({name})\n\n| {} | {} (table) | 95% band | catalog law |\n|---|---|---|---|\n",

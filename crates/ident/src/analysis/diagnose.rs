@@ -340,8 +340,12 @@ fn refine_or_note(
 /// The best candidate refined when it leaves the data above [`REFINE_MARGIN`]: its law
 /// in its shape-free form ([`refine_shape`]) and, on an arm, an effect at the joints or
 /// motors with its values per joint ([`split_per_joint`]: a shoulder's bearing is not a
-/// wrist's), an effect on a link's bending with its values per flexible link. The law is refined only when the split leaves the data above the margin
-/// too, and the better of the two by BIC is kept; the candidate is then scored again.
+/// wrist's), an effect on a link's bending with its values per flexible link. The
+/// shared law is refined only when the split leaves the data above the margin too; so
+/// are then the laws of every joint of the split, together (a table per joint, its
+/// knots over that joint's own motion, [`super::refine_shapes_together`]). Of the split, the shared
+/// table and the tables per joint the best by BIC over the catalog fit is kept; the
+/// candidate is then scored again.
 fn refine_winner(
     prep: &Prepared<'_>,
     judge: &Judge,
@@ -360,30 +364,71 @@ fn refine_winner(
     let e = f.model.effects.len().saturating_sub(1);
     let split = split_or_note(prep, &f, e, notes);
     let split_kept = split.as_ref().filter(|(s, _)| s.kept);
+    let above = |g: &Fitted| g.nrmse > REFINE_MARGIN * g.noise_floor;
     let shaped = match split_kept {
-        Some((_, sf)) if sf.nrmse <= REFINE_MARGIN * sf.noise_floor => None,
+        Some((_, sf)) if !above(sf) => None,
         _ => refine_or_note(prep, &f, e, notes),
     };
+    // A table per joint of a kept split that still leaves the data above the margin,
+    // all of them fitted together.
+    let mut per_joint: Vec<ShapeRefinement> = Vec::new();
+    let mut tabled: Option<(f64, Fitted)> = None;
+    if let Some((s, sf)) = split_kept.filter(|(_, sf)| above(sf)) {
+        match super::refine_shapes_together(prep, sf, e..e + s.joints.len()) {
+            Ok(Some((records, tf))) => {
+                if records.iter().any(|r| r.kept) {
+                    // (its score over the catalog fit, as the other two's)
+                    let n_runs = prep.runs.len();
+                    let n = prep.n_samples() as f64;
+                    let score = super::bic(f.ssr, f.model.fit_specs(n_runs).len(), n)
+                        - super::bic(tf.ssr, tf.model.fit_specs(n_runs).len(), n);
+                    tabled = Some((score, tf));
+                }
+                per_joint = records;
+            }
+            Ok(None) => {}
+            Err(err) => notes.push(format!(
+                "Refining the law of {} per joint in its shape-free form failed: {err}. ",
+                f.model.effects[e].effect.name()
+            )),
+        }
+    }
+    // The best of the three by its BIC improvement over the catalog fit.
+    let split_score = split_kept.map(|(s, _)| s.score);
     let shape_score = shaped
         .as_ref()
         .filter(|(r, _)| r.kept)
         .map(|(r, _)| r.score);
-    let split_wins = split_kept.is_some_and(|(s, _)| shape_score.is_none_or(|x| s.score >= x));
+    let tabled_score = tabled.as_ref().map(|(x, _)| *x);
+    let top = [split_score, shape_score, tabled_score]
+        .iter()
+        .enumerate()
+        .filter_map(|(k, x)| x.map(|x| (k, x)))
+        .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)))
+        .map(|(k, _)| k);
     let mut best = None;
     if let Some((mut s, sf)) = split {
-        s.kept = s.kept && split_wins;
+        // (the tables per joint hold the split)
+        s.kept = s.kept && matches!(top, Some(0 | 2));
         notes.push(describe_split(&s));
-        if s.kept {
+        if s.kept && top == Some(0) {
             best = Some(sf);
         }
         joint_splits.push(s);
     }
     if let Some((mut r, refined)) = shaped {
-        r.kept = r.kept && !split_wins;
+        r.kept = r.kept && top == Some(1);
         if r.kept {
             best = Some(refined);
         }
         refinements.push(r);
+    }
+    for mut r in per_joint {
+        r.kept = r.kept && top == Some(2);
+        refinements.push(r);
+    }
+    if let (Some(2), Some((_, tf))) = (top, tabled) {
+        best = Some(tf);
     }
     if let Some(b) = best {
         cands[0] = (judge.candidate(effect, &b), Some(b));
@@ -1482,6 +1527,13 @@ fn describe_refinement(r: &ShapeRefinement) -> String {
             r.nrmse,
             r.value,
             points.join(", ")
+        )
+    } else if r.score > MIN_SCORE {
+        // (better than its catalog law, but another refinement of the winner, a split
+        // per joint or tables per joint, is better still)
+        format!(
+            "The law of {} refined as a table of {} over {} fits better than its catalog law (NRMSE {:.4} against {:.4}, BIC score {:.1}) but is not kept: another refinement of it scores higher. ",
+            r.effect, r.value, r.argument, r.nrmse, r.nrmse_parametric, r.score
         )
     } else {
         format!(

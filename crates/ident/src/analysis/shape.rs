@@ -55,7 +55,8 @@ pub struct KnotChoice {
 /// The outcome of a shape-free refinement.
 #[derive(Debug, Clone, Serialize)]
 pub struct ShapeRefinement {
-    /// The effect whose law was refined.
+    /// The effect whose law was refined, with its joints when it is restricted to some
+    /// (`joint_friction@j5`: a table per joint).
     pub effect: String,
     /// What the law takes (`tension_n`, ...).
     pub argument: String,
@@ -128,8 +129,67 @@ fn place_knots(sorted: &[f64], k: usize, log_knots: bool) -> Vec<f64> {
 }
 
 /// The BIC of a fit with `p` free parameters over `n` samples.
-pub(super) fn bic(ssr: f64, p: usize, n: f64) -> f64 {
+pub(crate) fn bic(ssr: f64, p: usize, n: f64) -> f64 {
     n * (ssr.max(f64::MIN_POSITIVE) / n).ln() + p as f64 * n.ln()
+}
+
+/// Effect number `e` of `fitted`, its shape and the sorted values its argument takes
+/// over every run (at the effect's joints when it is restricted to some): what a table
+/// of its law is placed over. `None` when the effect has no shape, already holds one or
+/// the plant gives no values of its argument.
+#[allow(clippy::type_complexity)]
+fn table_start<'f>(
+    prep: &Prepared<'_>,
+    fitted: &'f Fitted,
+    e: usize,
+) -> Result<Option<(&'f crate::model::EffectUse, Shape, Vec<f64>)>, IdentError> {
+    let Some(u) = fitted.model.effects.get(e) else {
+        return Ok(None);
+    };
+    let Some(shape) = u.effect.shape() else {
+        return Ok(None);
+    };
+    if u.shape.is_some() {
+        return Ok(None);
+    }
+    let mut samples: Vec<f64> = (0..prep.runs.len())
+        .into_par_iter()
+        .map(|r| {
+            let params = fitted.model.plant_params(r)?;
+            prep.plant
+                .argument_samples(&params, r, shape.argument, u.at.as_deref())
+        })
+        .collect::<Result<Vec<_>, IdentError>>()?
+        .concat();
+    samples.retain(|x| x.is_finite() && *x >= 0.0);
+    samples.sort_by(f64::total_cmp);
+    if samples.is_empty() || quantile(&samples, 1.0) <= 0.0 {
+        return Ok(None);
+    }
+    Ok(Some((u, shape, samples)))
+}
+
+/// The catalog law with values `values0` at `knots`, as a table's start: within the
+/// shape's range, its value at 0 where the shape fixes it, never falling where the
+/// shape says so.
+fn catalog_at(effect: &dyn Effect, shape: &Shape, values0: &[f64], knots: &[f64]) -> Vec<f64> {
+    let mut y: Vec<f64> = knots
+        .iter()
+        .map(|&x| {
+            effect
+                .curve(values0, x)
+                .clamp(shape.max_value * 1e-6, shape.max_value)
+        })
+        .collect();
+    if let Some(z) = shape.value_at_zero {
+        y[0] = z;
+    }
+    if shape.non_decreasing {
+        for i in 1..y.len() {
+            y[i] = y[i].max(y[i - 1]);
+        }
+    }
+    y
 }
 
 /// Refines the law of effect number `e` of the fitted model `fitted` in its shape-free
@@ -141,31 +201,12 @@ pub fn refine_shape(
     fitted: &Fitted,
     e: usize,
 ) -> Result<Option<(ShapeRefinement, Fitted)>, IdentError> {
-    let Some(u) = fitted.model.effects.get(e) else {
+    let Some((u, shape, samples)) = table_start(prep, fitted, e)? else {
         return Ok(None);
     };
     let effect: &'static dyn Effect = u.effect;
-    let Some(shape) = effect.shape() else {
-        return Ok(None);
-    };
-    if u.shape.is_some() {
-        return Ok(None);
-    }
     let n_runs = prep.runs.len();
     let values0: Vec<f64> = u.params.iter().map(|p| p.value).collect();
-    let mut samples: Vec<f64> = (0..n_runs)
-        .into_par_iter()
-        .map(|r| {
-            let params = fitted.model.plant_params(r)?;
-            prep.plant.argument_samples(&params, r, shape.argument)
-        })
-        .collect::<Result<Vec<_>, IdentError>>()?
-        .concat();
-    samples.retain(|x| x.is_finite() && *x >= 0.0);
-    samples.sort_by(f64::total_cmp);
-    if samples.is_empty() || quantile(&samples, 1.0) <= 0.0 {
-        return Ok(None);
-    }
     let n = prep.n_samples() as f64;
     let p_parametric = fitted.model.fit_specs(n_runs).len();
     let bic_parametric = bic(fitted.ssr, p_parametric, n);
@@ -173,22 +214,7 @@ pub fn refine_shape(
         .iter()
         .map(|&k| {
             let knots = place_knots(&samples, k, shape.log_knots);
-            let mut y: Vec<f64> = knots
-                .iter()
-                .map(|&x| {
-                    effect
-                        .curve(&values0, x)
-                        .clamp(shape.max_value * 1e-6, shape.max_value)
-                })
-                .collect();
-            if let Some(z) = shape.value_at_zero {
-                y[0] = z;
-            }
-            if shape.non_decreasing {
-                for i in 1..y.len() {
-                    y[i] = y[i].max(y[i - 1]);
-                }
-            }
+            let y = catalog_at(effect, &shape, &values0, &knots);
             (knots, y)
         })
         .collect();
@@ -256,6 +282,24 @@ pub fn refine_shape(
             break;
         }
     }
+    let Some((tried, best_bic, best_fit)) = best_of(fits) else {
+        return Ok(None);
+    };
+    let score = bic_parametric - best_bic;
+    let Some(refinement) = record(&best_fit, e, &values0, tried, fitted.nrmse, score, n_runs)?
+    else {
+        return Ok(None);
+    };
+    let kept = refinement.kept;
+    Ok(Some((
+        refinement,
+        if kept { best_fit } else { fitted.clone() },
+    )))
+}
+
+/// Of the fits of every number of knots tried (`(knots, BIC, fit)`), what was tried
+/// and the best by BIC (its BIC and fit). `None` when nothing was fitted.
+fn best_of(mut fits: Vec<(usize, f64, Fitted)>) -> Option<(Vec<KnotChoice>, f64, Fitted)> {
     let tried = fits
         .iter()
         .map(|(k, b, f)| KnotChoice {
@@ -264,29 +308,43 @@ pub fn refine_shape(
             bic: *b,
         })
         .collect();
-    let Some(best) = (0..fits.len()).min_by(|&a, &b| fits[a].1.total_cmp(&fits[b].1)) else {
+    let best = (0..fits.len()).min_by(|&a, &b| fits[a].1.total_cmp(&fits[b].1))?;
+    let (_, bic, fit) = fits.swap_remove(best);
+    Some((tried, bic, fit))
+}
+
+/// What the refinement of effect number `e` found, from `best` (the fit holding its
+/// chosen table): the table and its band against the catalog law with values
+/// `values0`, kept when `score` (its BIC improvement) is above [`MIN_SCORE`]. `None`
+/// when `best` holds no table for the effect.
+fn record(
+    best: &Fitted,
+    e: usize,
+    values0: &[f64],
+    tried: Vec<KnotChoice>,
+    nrmse_parametric: f64,
+    score: f64,
+    n_runs: usize,
+) -> Result<Option<ShapeRefinement>, IdentError> {
+    let u = &best.model.effects[e];
+    let Some(sh) = u.shape.clone() else {
         return Ok(None);
     };
-    let (_, best_bic, best_fit) = fits.swap_remove(best);
-    let score = bic_parametric - best_bic;
-    let Some(sh) = best_fit.model.effects[e].shape.clone() else {
-        return Ok(None);
-    };
+    let (effect, shape) = (u.effect, &sh.shape);
     let knots = sh.knots.clone();
     let values = sh.values_for(0);
-    let band_95 = band(&best_fit, e, &sh, &values, n_runs);
-    let catalog: Vec<f64> = knots.iter().map(|&x| effect.curve(&values0, x)).collect();
+    let band_95 = band(best, e, &sh, &values, n_runs);
+    let catalog: Vec<f64> = knots.iter().map(|&x| effect.curve(values0, x)).collect();
     let table = sh.table_for(0).map_err(crate::model::ModelError::from)?;
     let top = *knots.last().unwrap_or(&0.0);
     let curve = (0..=40)
         .map(|i| {
             let x = top * i as f64 / 40.0;
-            [x, effect.curve(&values0, x), table.eval(x)]
+            [x, effect.curve(values0, x), table.eval(x)]
         })
         .collect();
-    let kept = score > MIN_SCORE;
-    let refinement = ShapeRefinement {
-        effect: effect.name().to_string(),
+    Ok(Some(ShapeRefinement {
+        effect: u.label(),
         argument: shape.argument.name().to_string(),
         value: shape.value.to_string(),
         unit: shape.unit.to_string(),
@@ -296,15 +354,75 @@ pub fn refine_shape(
         catalog,
         curve,
         tried,
-        nrmse_parametric: fitted.nrmse,
-        nrmse: best_fit.nrmse,
+        nrmse_parametric,
+        nrmse: best.nrmse,
         score,
-        kept,
+        kept: score > MIN_SCORE,
+    }))
+}
+
+/// Refines the laws of effects `uses` of `fitted` (the uses of one effect split per
+/// joint, [`super::split_per_joint`]) together: every use with a shape gets a table of
+/// `K` knots over its own joints' motion (K in [`KNOT_COUNTS`], in turn while the BIC
+/// improves), each from its catalog law, all fitted at once with the model's other
+/// free values. Together, not one after the other: a table fitted first leaves values
+/// on their bounds (the value at rest of a friction table, which the data barely see)
+/// that stall every later fit. `None` when no use has a shape to refine. The records
+/// share one score, the BIC improvement of all the tables over `fitted`; the returned
+/// [`Fitted`] holds them when kept.
+pub fn refine_shapes_together(
+    prep: &Prepared<'_>,
+    fitted: &Fitted,
+    uses: std::ops::Range<usize>,
+) -> Result<Option<(Vec<ShapeRefinement>, Fitted)>, IdentError> {
+    let mut starts = Vec::new();
+    for e in uses {
+        if let Some((u, shape, samples)) = table_start(prep, fitted, e)? {
+            let values0: Vec<f64> = u.params.iter().map(|p| p.value).collect();
+            starts.push((e, u.effect, shape, samples, values0));
+        }
+    }
+    if starts.is_empty() {
+        return Ok(None);
+    }
+    let n_runs = prep.runs.len();
+    let n = prep.n_samples() as f64;
+    let bic_parametric = bic(fitted.ssr, fitted.model.fit_specs(n_runs).len(), n);
+    let mut fits: Vec<(usize, f64, Fitted)> = Vec::new();
+    for &k in &KNOT_COUNTS {
+        let mut model = fitted.model.clone();
+        for (e, effect, shape, samples, values0) in &starts {
+            let knots = place_knots(samples, k, shape.log_knots);
+            let y = catalog_at(*effect, shape, values0, &knots);
+            model = model.with_shape(*e, ShapeUse::new(*effect, *shape, &knots, &y, true)?);
+        }
+        let f = fit_model_from(prep, &model, Start::Own)?;
+        let b = bic(f.ssr, f.model.fit_specs(n_runs).len(), n);
+        let worse = fits.last().is_some_and(|l| b >= l.1);
+        fits.push((k, b, f));
+        if worse {
+            break;
+        }
+    }
+    let Some((tried, best_bic, best_fit)) = best_of(fits) else {
+        return Ok(None);
     };
-    Ok(Some((
-        refinement,
-        if kept { best_fit } else { fitted.clone() },
-    )))
+    let score = bic_parametric - best_bic;
+    let mut records = Vec::new();
+    for (e, _, _, _, values0) in &starts {
+        if let Some(r) = record(
+            &best_fit,
+            *e,
+            values0,
+            tried.clone(),
+            fitted.nrmse,
+            score,
+            n_runs,
+        )? {
+            records.push(r);
+        }
+    }
+    Ok(Some((records, best_fit)))
 }
 
 /// The 95% band of every knot's value: `1.96` standard errors of the value (for a

@@ -545,12 +545,18 @@ impl Plant for ArmPlant<'_> {
         params: &PlantParams,
         run: usize,
         arg: Argument,
+        at: Option<&[String]>,
     ) -> Result<Vec<f64>, IdentError> {
         let r = &self.ds.runs[run];
         let (arm, substeps) = self.arm_for(params, run)?;
+        let names = &arm.spec().joints;
+        let wanted = |joint: usize| at.is_none_or(|a| a.contains(&names[joint].name));
         let mut out = Vec::new();
         each_sample(&arm, r, substeps, |st| {
             for (p, pair) in arm.pairs().iter().enumerate() {
+                if !wanted(pair.spec.joint) {
+                    continue;
+                }
                 match arg {
                     Argument::JointRateRadS => out.push(st.qd_rad_s[pair.spec.joint].abs()),
                     Argument::TensionN => {

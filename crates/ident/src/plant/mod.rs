@@ -105,13 +105,15 @@ pub trait Plant: Send + Sync + std::fmt::Debug {
 
     /// The values the argument `arg` of an effect's shape ([`longreach_drive::effects::Shape`])
     /// takes over run `run` simulated with `params`: where the data can inform a
-    /// shape-free law (its knots are placed over them). Empty when the plant has no such
-    /// quantity.
+    /// shape-free law (its knots are placed over them). `at`: only at these joints (an
+    /// arm's effect restricted to some, [`crate::model::EffectUse::at`]; the rig's
+    /// plants have one joint and ignore it). Empty when the plant has no such quantity.
     fn argument_samples(
         &self,
         _params: &PlantParams,
         _run: usize,
         _arg: Argument,
+        _at: Option<&[String]>,
     ) -> Result<Vec<f64>, IdentError> {
         Ok(Vec::new())
     }
@@ -232,6 +234,7 @@ impl Plant for RigPlant<'_> {
         params: &PlantParams,
         run: usize,
         arg: Argument,
+        _at: Option<&[String]>,
     ) -> Result<Vec<f64>, IdentError> {
         let s = self.sweep_sim(params, run)?;
         Ok(match arg {
@@ -338,6 +341,7 @@ impl Plant for SpecimenPlant<'_> {
         params: &PlantParams,
         run: usize,
         arg: Argument,
+        _at: Option<&[String]>,
     ) -> Result<Vec<f64>, IdentError> {
         Ok(match arg {
             Argument::TensionN => self.simulate(params, run)?.into_primary(),
