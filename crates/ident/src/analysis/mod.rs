@@ -18,10 +18,12 @@
 //!   terms, [`arm_findings`]);
 //! * `diagnose.rs`: the baseline and every applicable registered effect fitted, ranked,
 //!   and the missing effect named when the evidence is decisive ([`diagnose`]);
-//! * `joints.rs`: an arm effect's values split per joint (one use per moved joint,
-//!   kept by BIC; [`split_per_joint`]);
+//! * `joints.rs`: an arm effect's values split per joint (one use per moved joint) or
+//!   per flexible link, kept by BIC ([`split_per_joint`]);
 //! * `shape.rs`: an effect's law refined in its shape-free form (a table over the range
-//!   the data visits, the number of knots chosen by BIC; [`refine_shape`]);
+//!   the data visits, the number of knots chosen by BIC; [`refine_shape`]), and the
+//!   laws of an effect split per joint refined together, a table per joint
+//!   ([`refine_shapes_together`]);
 //! * `signature.rs`: the residual's signatures, each with the simplest term that would
 //!   produce it, its size and the share of the excess error it removes ([`signatures`]).
 
