@@ -1285,7 +1285,7 @@ fn write_law_figure(dir: &Path, r: &analysis::ShapeRefinement, md: &mut String) 
     };
     let fig = Figure {
         title: format!(
-            "{}: {} against {}; NRMSE {:.4} catalog law, {:.4} table{}",
+            "{}: {} vs {}; NRMSE {:.4} catalog, {:.4} table{}",
             r.effect,
             r.value,
             r.argument,
