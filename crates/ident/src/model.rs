@@ -1083,11 +1083,7 @@ impl Model {
                         format!("effect `{name}` is given twice on {on} (also [[effect]] {j})"),
                         &format!(
                             "give an effect once, or once per {} with disjoint `{}` lists",
-                            if at_key(effect) == "links" {
-                                "link"
-                            } else {
-                                "joint"
-                            },
+                            at_unit(effect),
                             at_key(effect)
                         ),
                     ));
@@ -1124,10 +1120,20 @@ impl Model {
     }
 }
 
+/// What one name of `effect`'s [`EffectUse::at`] is: a `link` for an effect on a
+/// link's bending, a `joint` for every other.
+pub fn at_unit(effect: &'static dyn Effect) -> &'static str {
+    if effects::bends_links(effect) {
+        "link"
+    } else {
+        "joint"
+    }
+}
+
 /// The model-file key that restricts `effect` on an arm ([`EffectUse::at`]): `links`
 /// for an effect on a link's bending, `joints` for every other.
 pub fn at_key(effect: &'static dyn Effect) -> &'static str {
-    if effects::bends_links(effect) {
+    if at_unit(effect) == "link" {
         "links"
     } else {
         "joints"
@@ -1215,15 +1221,7 @@ pub fn at_overlap(
         }
         match (other.at.as_deref(), at) {
             (Some(a), Some(b)) => a.iter().find(|x| b.contains(x)).map(|x| (j, x.clone())),
-            _ => Some((
-                j,
-                if at_key(effect) == "links" {
-                    "every link"
-                } else {
-                    "every joint"
-                }
-                .to_string(),
-            )),
+            _ => Some((j, format!("every {}", at_unit(effect)))),
         }
     })
 }

@@ -376,13 +376,10 @@ fn refine_winner(
     if let Some((s, sf)) = split_kept.filter(|(_, sf)| above(sf)) {
         match super::refine_shapes_together(prep, sf, e..e + s.joints.len()) {
             Ok(Some((records, tf))) => {
-                if records.iter().any(|r| r.kept) {
-                    // (its score over the catalog fit, as the other two's)
-                    let n_runs = prep.runs.len();
-                    let n = prep.n_samples() as f64;
-                    let score = super::bic(f.ssr, f.model.fit_specs(n_runs).len(), n)
-                        - super::bic(tf.ssr, tf.model.fit_specs(n_runs).len(), n);
-                    tabled = Some((score, tf));
+                // (its score over the catalog fit, as the other two's: the split's over
+                // the catalog fit plus the tables' over the split)
+                if let Some(r) = records.iter().find(|r| r.kept) {
+                    tabled = Some((s.score + r.score, tf));
                 }
                 per_joint = records;
             }

@@ -186,7 +186,7 @@ pub fn split_per_joint(
     );
     let split = JointSplit {
         effect: shared.effect.name().to_string(),
-        per: if per_link { "link" } else { "joint" },
+        per: crate::model::at_unit(shared.effect),
         shared: shared
             .params
             .iter()

@@ -58,6 +58,5 @@ pub use joints::{moved_joints, split_per_joint, splittable, JointSplit, JointVal
 pub use prepare::{
     noise_sigma_second_difference, primary_name, ChannelData, ChannelSums, Prepared, RunData,
 };
-pub(crate) use shape::bic;
 pub use shape::{refine_shape, refine_shapes_together, KnotChoice, ShapeRefinement, KNOT_COUNTS};
 pub use signature::{describe, signatures, Equivalent, Signature, SignatureKind};

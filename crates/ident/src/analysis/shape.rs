@@ -129,7 +129,7 @@ fn place_knots(sorted: &[f64], k: usize, log_knots: bool) -> Vec<f64> {
 }
 
 /// The BIC of a fit with `p` free parameters over `n` samples.
-pub(crate) fn bic(ssr: f64, p: usize, n: f64) -> f64 {
+pub(super) fn bic(ssr: f64, p: usize, n: f64) -> f64 {
     n * (ssr.max(f64::MIN_POSITIVE) / n).ln() + p as f64 * n.ln()
 }
 
