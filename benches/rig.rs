@@ -1,7 +1,7 @@
 //! Rig benchmarks (issue: rope laws and rig): one rig step with four-element ropes, the
 //! same with elastic ropes (the MuJoCo anchor's rope), with ropes that stiffen with
-//! tension (catalog law and table), and the whole 49-392 N Dyneema2
-//! bode scenario. Run: `cargo bench --bench rig`.
+//! tension (catalog law and table), with a creep that grows with tension, and the
+//! whole 49-392 N Dyneema2 bode scenario. Run: `cargo bench --bench rig`.
 
 use std::hint::black_box;
 use std::path::Path;
@@ -9,7 +9,7 @@ use std::path::Path;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 
 use longreach_drive::{RigModel, RigSpec};
-use longreach_rope::{Catalog, LawKind, RopeLaw, Table};
+use longreach_rope::{Catalog, LawKind, NonlinearCreep, RopeLaw, Table};
 use longreach_scenario::BodeScenario;
 
 fn rig(rope: &str, law: LawKind, damping: f64) -> RigModel {
@@ -46,6 +46,18 @@ fn bench_step(c: &mut Criterion) {
         (
             "stiffening_dyneema2",
             stiffening(|law| law.stiffening_per_n = 7.7e-4),
+        ),
+        // A creep dashpot that flows faster under tension (`nonlinear_creep`,
+        // f/c2 (1 + (f/f_c)^n)): each rope step solved by the general safeguarded
+        // Newton, one power per iteration.
+        (
+            "nonlinear_creep_dyneema2",
+            stiffening(|law| {
+                law.creep = Some(NonlinearCreep {
+                    tension_n: 300.0,
+                    exponent: 3.0,
+                })
+            }),
         ),
         (
             "stiffness_table_dyneema2",

