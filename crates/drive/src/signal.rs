@@ -89,6 +89,23 @@ impl SteppedSine {
     }
 }
 
+/// How many of the strictly increasing `time_s` are `<= t` (`partition_point`), found
+/// in one guess on a uniformly sampled series (a recorded command; a simulation asks
+/// for every joint at every step, and the binary search took 5% of an arm diagnosis)
+/// and by bisection otherwise. The guess is kept only when it brackets `t`, so the
+/// answer is the bisection's on any series.
+fn samples_up_to(time_s: &[f64], t: f64) -> usize {
+    let n = time_s.len();
+    if n >= 2 && time_s[0] <= t && t < time_s[n - 1] {
+        let span = time_s[n - 1] - time_s[0];
+        let guess = ((t - time_s[0]) / span * (n - 1) as f64) as usize;
+        if guess + 1 < n && time_s[guess] <= t && t < time_s[guess + 1] {
+            return guess + 1;
+        }
+    }
+    time_s.partition_point(|&x| x <= t)
+}
+
 /// An input-angle history.
 #[derive(Debug, Clone, PartialEq)]
 pub enum InputSignal {
@@ -181,7 +198,7 @@ impl InputSignal {
                 }
             }
             Self::Series { time_s, angle_rad } => {
-                let i = time_s.partition_point(|&x| x <= t);
+                let i = samples_up_to(time_s, t);
                 if i == 0 {
                     angle_rad[0]
                 } else if i >= time_s.len() {

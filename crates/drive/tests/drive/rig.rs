@@ -83,6 +83,41 @@ fn recorded_series_reproduces_the_signal_it_samples() {
     assert!(err.to_string().contains("sample 2"), "{err}");
 }
 
+/// A recorded series is interpolated between the two samples around `t` and held
+/// past its ends, on a uniformly sampled series (looked up in one guess) as on an
+/// irregular one (bisection): every value equals the interpolation between the samples
+/// found by a linear scan, at sample times, between them, at the ends and beyond.
+#[test]
+fn a_series_interpolates_between_the_samples_around_each_time() {
+    let uniform: Vec<f64> = (0..801).map(|i| 0.25 + f64::from(i) * 0.01).collect();
+    let irregular: Vec<f64> = (0..400).map(|i| f64::from(i).powf(1.5) * 1e-3).collect();
+    for time_s in [uniform, irregular] {
+        let angle_rad: Vec<f64> = time_s.iter().map(|t| (3.0 * t).sin() + t).collect();
+        let series = InputSignal::series(time_s.clone(), angle_rad.clone()).unwrap();
+        let (t0, t1) = (time_s[0], time_s[time_s.len() - 1]);
+        let n = 5000;
+        let probes = (0..=n)
+            .map(|k| t0 - 0.5 + (t1 - t0 + 1.0) * f64::from(k) / f64::from(n))
+            .chain(time_s.iter().copied());
+        for t in probes {
+            let expected = match time_s.iter().rposition(|&x| x <= t) {
+                None => angle_rad[0],
+                Some(i) if i + 1 == time_s.len() => angle_rad[i],
+                Some(i) => {
+                    let w = (t - time_s[i]) / (time_s[i + 1] - time_s[i]);
+                    angle_rad[i] + w * (angle_rad[i + 1] - angle_rad[i])
+                }
+            };
+            let got = series.angle_rad(t);
+            assert_eq!(
+                got.to_bits(),
+                expected.to_bits(),
+                "t = {t}: {got} against {expected}"
+            );
+        }
+    }
+}
+
 /// While both ropes are taut a fixed and a constant-force tensioner give the same
 /// motion for linear ropes (different solver paths); once a rope goes slack the
 /// constant-force tensioner clips the rope torque at 2 r2 T, the fixed one does not.
