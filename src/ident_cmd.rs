@@ -606,7 +606,11 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
             format!("{:.4}", c.nrmse),
             format!("{:.1}", c.score),
             format!("{:.0}%", 100.0 * c.explained.clamp(0.0, 1.0)),
-            c.decisive.to_string(),
+            if c.screened && !d.candidates.iter().all(|c| c.screened) {
+                "false (screened)".to_string()
+            } else {
+                c.decisive.to_string()
+            },
         ]);
     }
     println!("{t}");
@@ -633,6 +637,7 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
                             .map_or(String::new(), |b| Clipped::note_for(b)),
                     ),
                     None if c.error.is_some() => ("-".into(), "fit failed".into()),
+                    None if c.screened => ("-".into(), "screened, not fitted".into()),
                     None => ("-".into(), "known".into()),
                 };
                 t.add_row(vec![
@@ -997,7 +1002,13 @@ fn write_report(
                 k.nrmse / floor,
                 k.score,
                 100.0 * k.explained.clamp(0.0, 1.0),
-                if k.decisive { "**yes**" } else { "" }
+                if k.decisive {
+                    "**yes**"
+                } else if k.screened {
+                    "screened, not fitted"
+                } else {
+                    ""
+                }
             ));
         }
         if !d.signatures.is_empty() {

@@ -243,6 +243,10 @@ pub struct FitOptions {
     /// many Jacobians, a fit whose SSR is not below every optimum found stops, as one
     /// that joined a basin does. `None`: every start runs to its end.
     pub probation_jacobians: Option<usize>,
+    /// Whether the result carries standard errors and intervals (one more Jacobian at
+    /// the optimum). `false`: a search whose values are only a screen (NaN standard
+    /// errors and intervals, `interval_method` "none").
+    pub intervals: bool,
 }
 
 impl Default for FitOptions {
@@ -254,6 +258,7 @@ impl Default for FitOptions {
             diff_step: f64::EPSILON.sqrt(),
             max_evaluations: usize::MAX,
             probation_jacobians: None,
+            intervals: true,
         }
     }
 }
@@ -928,7 +933,23 @@ pub fn fit_joining(
             target.rejected.get()
         ));
     }
-    let u = uncertainties(problem, params, &x, n, opts.diff_step)?;
+    let u = if opts.intervals {
+        uncertainties(problem, params, &x, n, opts.diff_step)?
+    } else {
+        let r = evaluate(problem, params, &x, Some(n))?;
+        let p = x.len();
+        Uncertainties {
+            ssr: r.iter().map(|v| v * v).sum(),
+            std_errors: vec![f64::NAN; p],
+            join_std_errors: vec![f64::NAN; p],
+            correlation: Vec::new(),
+            interval_95: vec![(f64::NAN, f64::NAN); p],
+            clipped: vec![Clipped::No; p],
+            shift: vec![0.0; p],
+            method: "none".into(),
+            evaluations: 0,
+        }
+    };
     Ok(Some(FitResult {
         names: params.iter().map(|s| s.name.clone()).collect(),
         values: x,

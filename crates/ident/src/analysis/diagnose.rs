@@ -10,7 +10,7 @@ use super::{
     arm_dataset, compare, compare_arm, describe, describe_findings, fit_model, fit_model_from,
     refine_shape, scan_coordinates, screen_model, searched_starts, signatures, simulate_arm,
     split_per_joint, ArmFinding, Comparison, Fitted, JointSplit, Prepared, RunResonance,
-    ShapeRefinement, Signature, Start, Where,
+    ShapeRefinement, Signature, Staged, Start, Where, SCREEN_JACOBIANS,
 };
 use crate::error::IdentError;
 use crate::model::Model;
@@ -34,8 +34,10 @@ pub struct Candidate {
     pub interval_clipped: std::collections::BTreeMap<String, String>,
     /// True for the winner when the evidence is decisive.
     pub decisive: bool,
-    /// True when the candidate was only screened ([`screen_model`]: its starting values,
-    /// one simulation) because the baseline already fits to the noise floor.
+    /// True when the candidate was only screened: at its starting values, one
+    /// simulation ([`screen_model`]), because the baseline already fits to the noise
+    /// floor; or, on an arm, stopped after its first search ([`Staged::screen`]) left it
+    /// above [`SCREEN_RATIO`] times the best candidate's squared error.
     pub screened: bool,
     /// Why the fit failed, if it did.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -167,6 +169,17 @@ pub const PAIR_CANDIDATES: usize = 3;
 /// the decision when one of the runners-up could explain the failure
 /// ([`refine_contenders`]).
 pub const CONTENDERS: usize = 3;
+
+/// On an arm, a candidate whose first search ([`Staged::screen`]: its starting grid and
+/// [`SCREEN_JACOBIANS`] Jacobians of its first start) leaves more than this multiple of
+/// the best candidate's squared error after the same search is not fitted on: it is
+/// reported as screened, at those values. Its full fit would have to fall tenfold
+/// further than the best one's to compete, while the score gap a decision needs is a
+/// few units of `n ln(SSR ratio)` with `n` in the hundreds of thousands; such a
+/// candidate can neither win nor be the runner-up a decision weighs. On
+/// `example_arm_joint_friction` the seven candidates it stops (4000x the best and more)
+/// took 60% of the candidates' simulations.
+pub const SCREEN_RATIO: f64 = 10.0;
 
 /// Candidates (and pairs) fitted on an arm's coarse twin ([`Prepared::coarse_twin`])
 /// whose fits are finished at the chosen step: the best this many by their SSR there.
@@ -315,6 +328,35 @@ impl Judge {
             error: None,
         }
     }
+}
+
+/// Every model of `models` fitted in two stages ([`Staged`]): all screened, then fitted
+/// on those whose screen is within [`SCREEN_RATIO`] of the best screen's squared error
+/// (and those whose screen failed). Returns the fits in `models`' order (a stopped
+/// one's its screen, `fit = None`) and the indices of the stopped ones.
+fn staged_fits(
+    prep: &Prepared<'_>,
+    models: &[Model],
+) -> (Vec<Result<Fitted, IdentError>>, Vec<usize>) {
+    let mut stages: Vec<Staged<'_, '_>> = models.iter().map(|m| Staged::new(prep, m)).collect();
+    let screens: Vec<Result<Fitted, IdentError>> =
+        stages.par_iter_mut().map(Staged::screen).collect();
+    let best = screens
+        .iter()
+        .filter_map(|r| r.as_ref().ok())
+        .map(|f| f.ssr)
+        .fold(f64::INFINITY, f64::min);
+    let stop: Vec<bool> = screens
+        .iter()
+        .map(|r| r.as_ref().is_ok_and(|f| f.ssr > SCREEN_RATIO * best))
+        .collect();
+    let fits = stages
+        .into_par_iter()
+        .zip(screens)
+        .zip(stop.par_iter())
+        .map(|((stage, screen), &stop)| if stop { screen } else { stage.fit() })
+        .collect();
+    (fits, (0..stop.len()).filter(|&i| stop[i]).collect())
 }
 
 /// [`refine_shape`], a failure noted for the explanation instead of ending the
@@ -974,18 +1016,24 @@ pub fn diagnose(
     } else {
         base.model.clone()
     };
+    let models: Vec<Model> = effects.iter().map(|e| searched.with_effect(*e)).collect();
+    let (fits, stopped) = if at_floor {
+        let fits = models.par_iter().map(|m| screen_model(search, m)).collect();
+        (fits, Vec::new())
+    } else if prep.kind == DataKind::ArmMoves {
+        staged_fits(search, &models)
+    } else {
+        (
+            models.par_iter().map(|m| fit_model(search, m)).collect(),
+            Vec::new(),
+        )
+    };
     let fits: Vec<(String, Result<Fitted, IdentError>)> = effects
-        .par_iter()
-        .map(|e| {
-            let m = searched.with_effect(*e);
-            let f = if at_floor {
-                screen_model(search, &m)
-            } else {
-                fit_model(search, &m)
-            };
-            (e.name().to_string(), f)
-        })
+        .iter()
+        .map(|e| e.name().to_string())
+        .zip(fits)
         .collect();
+    let stopped_names: Vec<String> = stopped.iter().map(|&i| fits[i].0.clone()).collect();
     let fits = finish(
         prep,
         coarse.as_ref(),
@@ -1005,11 +1053,21 @@ pub fn diagnose(
     let mut cands: Vec<(Candidate, Option<Fitted>)> = fits
         .into_iter()
         .map(|(name, r)| match r {
-            Ok(f) => (judge.candidate(name, &f), Some(f)),
+            Ok(f) => {
+                let mut c = judge.candidate(name, &f);
+                c.screened |= stopped_names.contains(&c.effect);
+                (c, Some(f))
+            }
             Err(err) => (failed(name, &err, at_floor), None),
         })
         .collect();
     rank(&mut cands);
+    if !stopped_names.is_empty() {
+        notes.push(format!(
+            "Only screened, not fitted on (their starting grid and {SCREEN_JACOBIANS} steps of their first start's least squares left them above {SCREEN_RATIO}x the best candidate's squared error after the same search): {}. ",
+            stopped_names.join(", ")
+        ));
+    }
     let parametric = if at_floor { Vec::new() } else { cands.clone() };
     // The best candidate refined when its catalog formula leaves the data well above
     // the floor: the effect may be right and its formula (or its one value for every
@@ -1373,9 +1431,15 @@ fn explain(
             ));
             if let Some(second) = cands.get(1) {
                 s.push_str(&format!(
-                    "the next best, {}, explains {:.0}%. ",
+                    "the next best, {}, explains {}{:.0}%{}. ",
                     second.effect,
-                    100.0 * second.explained.clamp(0.0, 1.0)
+                    if second.screened { "at least " } else { "" },
+                    100.0 * second.explained.clamp(0.0, 1.0),
+                    if second.screened {
+                        " (screened, not fitted)"
+                    } else {
+                        ""
+                    }
                 ));
             }
             s.push_str(&arm.after_words());

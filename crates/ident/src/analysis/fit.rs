@@ -439,6 +439,7 @@ fn starting_values(
                         diff_step: 1e-6,
                         max_evaluations: usize::MAX,
                         probation_jacobians: None,
+                        intervals: true,
                     },
                 ) {
                     Ok(r) if r.ssr <= costs[k] => r.values,
@@ -679,7 +680,13 @@ pub(crate) fn fit_simulated(
     start: Start,
     sims: Option<Vec<Vec<f64>>>,
 ) -> Result<Fitted, IdentError> {
-    let first = fit_once(prep, model, start, sims)?;
+    let first = fit_once(&SimCache::new(prep, model), start, sims, None)?;
+    or_from_defaults(prep, first)
+}
+
+/// `first`, or its fit again from its values on bounds reset to their effects'
+/// defaults when that is closer to the data ([`fit_model_from`]).
+fn or_from_defaults(prep: &Prepared<'_>, first: Fitted) -> Result<Fitted, IdentError> {
     let Some(reset) = first.model.with_bound_values_reset(prep.runs.len()) else {
         return Ok(first);
     };
@@ -689,7 +696,12 @@ pub(crate) fn fit_simulated(
     if prep.ssr(&reset_sims) >= first.ssr {
         return Ok(first);
     }
-    match fit_once(prep, &reset, Start::Own, Some(reset_sims)) {
+    match fit_once(
+        &SimCache::new(prep, &reset),
+        Start::Own,
+        Some(reset_sims),
+        None,
+    ) {
         Ok(again) if again.ssr < first.ssr => Ok(Fitted {
             nrmse_before: first.nrmse_before,
             ..again
@@ -698,14 +710,129 @@ pub(crate) fn fit_simulated(
     }
 }
 
-/// [`fit_simulated`] without the restart from the defaults.
+/// The least squares' options of a fit of `model` with `p` free parameters on `prep`
+/// from one of its starts ([`fit_once`]).
+fn fit_options(prep: &Prepared<'_>, model: &Model, p: usize) -> FitOptions {
+    let dear =
+        prep.kind == DataKind::SineSweep && model.law_for_run(0).is_ok_and(|(l, _)| !l.is_linear());
+    FitOptions {
+        tolerance: 1e-5,
+        gtol: 1e-7,
+        patience: 25,
+        diff_step: 1e-5,
+        max_evaluations: if dear {
+            DEAR_EVALUATIONS_PER_PARAM * (p + 1)
+        } else if prep.kind == DataKind::ArmMoves {
+            ARM_EVALUATIONS_PER_PARAM * (p + 1)
+        } else {
+            usize::MAX
+        },
+        probation_jacobians: (prep.kind == DataKind::ArmMoves).then_some(ARM_PROBATION_JACOBIANS),
+        intervals: true,
+    }
+}
+
+/// `starts`, where a single searched start simulates farther from the data than the
+/// model's own values `own` (SSR `own_ssr`), with those in its place.
+fn or_own(
+    cache: &SimCache<'_, '_>,
+    mut starts: Vec<Vec<f64>>,
+    own: Vec<f64>,
+    own_ssr: f64,
+) -> Vec<Vec<f64>> {
+    if starts.len() == 1 && starts[0] != own && cache.ssr(&starts[0]) > own_ssr {
+        starts[0] = own;
+    }
+    starts
+}
+
+/// Jacobians of a candidate's first start in the first stage of a [`Staged`] fit.
+pub const SCREEN_JACOBIANS: usize = 3;
+
+/// A model's fit ([`fit_model`]) in two stages that share its simulations, for a
+/// diagnosis that fits many candidates and keeps few ([`super::diagnose`] on arms):
+/// [`Self::screen`], the search of starting values and the first start's least squares
+/// for [`SCREEN_JACOBIANS`] Jacobians, then, for the candidates kept, [`Self::fit`],
+/// the whole fit. The second stage retraces the first start's path through the
+/// simulations already made, and its result is [`fit_model`]'s to the bit.
+pub struct Staged<'p, 'a> {
+    cache: SimCache<'p, 'a>,
+    starts: Option<Vec<Vec<f64>>>,
+}
+
+impl std::fmt::Debug for Staged<'_, '_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Staged")
+            .field("screened", &self.starts.is_some())
+            .finish_non_exhaustive()
+    }
+}
+
+impl<'p, 'a> Staged<'p, 'a> {
+    /// The fit of `model` (its free parameters from its values) on `prep`.
+    pub fn new(prep: &'p Prepared<'a>, model: &'p Model) -> Self {
+        Self {
+            cache: SimCache::new(prep, model),
+            starts: None,
+        }
+    }
+
+    /// The first stage: the model at the values its first start reaches after
+    /// [`SCREEN_JACOBIANS`] Jacobians (or at that start when its least squares fails),
+    /// with `fit = None` (no intervals: a screen, not a fit).
+    pub fn screen(&mut self) -> Result<Fitted, IdentError> {
+        let (prep, model) = (self.cache.prep, self.cache.model);
+        let n_runs = prep.runs.len();
+        let own: Vec<f64> = model.fit_specs(n_runs).iter().map(|s| s.initial).collect();
+        let sims0 = self.cache.simulate(&own)?;
+        let (nrmse_before, noise_floor) = prep.overall(&sims0);
+        let searched = starting_values(&self.cache, true)?;
+        let x0 = or_own(&self.cache, searched.clone(), own, prep.ssr(&sims0)).swap_remove(0);
+        // (the second stage chooses among them as `fit_once` does)
+        self.starts = Some(searched);
+        let specs = model.with_values(&x0, n_runs).fit_specs(n_runs);
+        let mut values = x0;
+        if !specs.is_empty() {
+            // the least squares of `fit_once`'s first start, stopped early: the same path
+            let opts = FitOptions {
+                max_evaluations: SCREEN_JACOBIANS * (specs.len() + 2),
+                intervals: false,
+                ..fit_options(prep, model, specs.len())
+            };
+            let problem = Problem { cache: &self.cache };
+            if let Ok(Some(r)) = fit_joining(&problem, &specs, &opts, &[]) {
+                values = r.values;
+            }
+        }
+        let sims = self.cache.simulate(&values)?.to_vec();
+        let (nrmse, _) = prep.overall(&sims);
+        Ok(Fitted {
+            model: model.with_values(&values, n_runs),
+            fit: None,
+            nrmse_before,
+            nrmse,
+            noise_floor,
+            ssr: prep.ssr(&sims),
+            sims,
+        })
+    }
+
+    /// The second stage: the whole fit, [`fit_model`]'s.
+    pub fn fit(self) -> Result<Fitted, IdentError> {
+        let first = fit_once(&self.cache, Start::Search, None, self.starts)?;
+        or_from_defaults(self.cache.prep, first)
+    }
+}
+
+/// [`fit_simulated`] without the restart from the defaults, on `cache`'s model;
+/// `searched`: the starts [`starting_values`] gives it, when already found.
 fn fit_once(
-    prep: &Prepared<'_>,
-    model: &Model,
+    cache: &SimCache<'_, '_>,
     start: Start,
     sims: Option<Vec<Vec<f64>>>,
+    searched: Option<Vec<Vec<f64>>>,
 ) -> Result<Fitted, IdentError> {
-    let cache = SimCache::new(prep, model);
+    let (prep, model) = (cache.prep, cache.model);
     let n_runs = prep.runs.len();
     let own: Vec<f64> = model.fit_specs(n_runs).iter().map(|s| s.initial).collect();
     // The model itself is the model at `own` unless a value sat on a bound (the specs
@@ -730,20 +857,12 @@ fn fit_once(
         None => std::sync::Arc::new(prep.simulate(model)?),
     };
     let (nrmse_before, noise_floor) = prep.overall(&sims0);
-    let mut starts = match start {
-        Start::Own => vec![own.clone()],
-        Start::Search => starting_values(&cache, true)?,
+    let starts = match (start, searched) {
+        (Start::Own, _) => vec![own.clone()],
+        (Start::Search, Some(found)) => found,
+        (Start::Search, None) => starting_values(cache, true)?,
     };
-    if starts.len() == 1 && starts[0] != own {
-        // a searched start that simulates farther from the data than the model's own
-        // values gives way to them
-        if cache
-            .simulate(&starts[0])
-            .is_ok_and(|s| prep.ssr(&s) > prep.ssr(&sims0))
-        {
-            starts[0] = own;
-        }
-    }
+    let starts = or_own(cache, starts, own, prep.ssr(&sims0));
     let mut best: Option<(Model, Option<FitResult>, f64)> = None;
     // Optima of the starts fitted so far (values, SSR; converged fits only): a later
     // start that comes near one stops there (`fit_joining`).
@@ -760,27 +879,11 @@ fn fit_once(
             continue;
         }
         started.push(key);
-        let dear = prep.kind == DataKind::SineSweep
-            && model.law_for_run(0).is_ok_and(|(l, _)| !l.is_linear());
         let (fitted_model, fit_res) = if specs.is_empty() {
             (model.clone(), None)
         } else {
-            let opts = FitOptions {
-                tolerance: 1e-5,
-                gtol: 1e-7,
-                patience: 25,
-                diff_step: 1e-5,
-                max_evaluations: if dear {
-                    DEAR_EVALUATIONS_PER_PARAM * (specs.len() + 1)
-                } else if prep.kind == DataKind::ArmMoves {
-                    ARM_EVALUATIONS_PER_PARAM * (specs.len() + 1)
-                } else {
-                    usize::MAX
-                },
-                probation_jacobians: (prep.kind == DataKind::ArmMoves)
-                    .then_some(ARM_PROBATION_JACOBIANS),
-            };
-            let problem = Problem { cache: &cache };
+            let opts = fit_options(prep, model, specs.len());
+            let problem = Problem { cache };
             match fit_joining(&problem, &specs, &opts, &known) {
                 // joined the basin of a start fitted before
                 Ok(None) => continue,

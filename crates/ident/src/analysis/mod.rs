@@ -48,11 +48,11 @@ pub use compare::{
 };
 pub use diagnose::{
     diagnose, BaselineSummary, Candidate, Diagnosis, Lead, FLOOR_MARGIN, MIN_EXPLAINED, MIN_SCORE,
-    MIN_SCORE_GAP, NAME_MARGIN, PAIR_CANDIDATES, REFINE_MARGIN,
+    MIN_SCORE_GAP, NAME_MARGIN, PAIR_CANDIDATES, REFINE_MARGIN, SCREEN_RATIO,
 };
 pub use fit::{
-    fit_model, fit_model_from, scan_coordinates, screen_model, searched_starts, Fitted, Start,
-    ARM_EVALUATIONS_PER_PARAM, DEAR_EVALUATIONS_PER_PARAM,
+    fit_model, fit_model_from, scan_coordinates, screen_model, searched_starts, Fitted, Staged,
+    Start, ARM_EVALUATIONS_PER_PARAM, DEAR_EVALUATIONS_PER_PARAM, SCREEN_JACOBIANS,
 };
 pub use joints::{moved_joints, split_per_joint, splittable, JointSplit, JointValues};
 pub use prepare::{

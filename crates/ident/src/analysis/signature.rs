@@ -396,6 +396,7 @@ fn fit_sweep_term(
             diff_step: 1e-6,
             max_evaluations: usize::MAX,
             probation_jacobians: None,
+            intervals: true,
         },
     )
     .map_or(initial.clone(), |r| r.values);
@@ -419,6 +420,7 @@ fn fit_sweep_term(
             diff_step: 1e-5,
             max_evaluations: usize::MAX,
             probation_jacobians: None,
+            intervals: true,
         },
     )?;
     Ok((r.values[tf.n_base..].to_vec(), r.ssr))
