@@ -177,8 +177,8 @@ pub const CONTENDERS: usize = 3;
 /// further than the best one's to compete, while the score gap a decision needs is a
 /// few units of `n ln(SSR ratio)` with `n` in the hundreds of thousands; such a
 /// candidate can neither win nor be the runner-up a decision weighs. On
-/// `example_arm_joint_friction` the seven candidates it stops (4000x the best and more)
-/// took 60% of the candidates' simulations.
+/// `example_arm_joint_friction` it stops eight candidates (thousands of times the best
+/// one's squared error): the diagnosis' instructions fell from 1.15e12 to 0.49e12.
 pub const SCREEN_RATIO: f64 = 10.0;
 
 /// Candidates (and pairs) fitted on an arm's coarse twin ([`Prepared::coarse_twin`])
