@@ -333,11 +333,11 @@ impl Judge {
 /// Every model of `models` fitted in two stages ([`Staged`]): all screened, then fitted
 /// on those whose screen is within [`SCREEN_RATIO`] of the best screen's squared error
 /// (and those whose screen failed). Returns the fits in `models`' order (a stopped
-/// one's its screen, `fit = None`) and the indices of the stopped ones.
+/// one's its screen, `fit = None`) and, in the same order, whether each was stopped.
 fn staged_fits(
     prep: &Prepared<'_>,
     models: &[Model],
-) -> (Vec<Result<Fitted, IdentError>>, Vec<usize>) {
+) -> (Vec<Result<Fitted, IdentError>>, Vec<bool>) {
     let mut stages: Vec<Staged<'_, '_>> = models.iter().map(|m| Staged::new(prep, m)).collect();
     let screens: Vec<Result<Fitted, IdentError>> =
         stages.par_iter_mut().map(Staged::screen).collect();
@@ -356,7 +356,7 @@ fn staged_fits(
         .zip(stop.par_iter())
         .map(|((stage, screen), &stop)| if stop { screen } else { stage.fit() })
         .collect();
-    (fits, (0..stop.len()).filter(|&i| stop[i]).collect())
+    (fits, stop)
 }
 
 /// [`refine_shape`], a failure noted for the explanation instead of ending the
@@ -1019,13 +1019,13 @@ pub fn diagnose(
     let models: Vec<Model> = effects.iter().map(|e| searched.with_effect(*e)).collect();
     let (fits, stopped) = if at_floor {
         let fits = models.par_iter().map(|m| screen_model(search, m)).collect();
-        (fits, Vec::new())
+        (fits, vec![false; models.len()])
     } else if prep.kind == DataKind::ArmMoves {
         staged_fits(search, &models)
     } else {
         (
             models.par_iter().map(|m| fit_model(search, m)).collect(),
-            Vec::new(),
+            vec![false; models.len()],
         )
     };
     let fits: Vec<(String, Result<Fitted, IdentError>)> = effects
@@ -1033,7 +1033,11 @@ pub fn diagnose(
         .map(|e| e.name().to_string())
         .zip(fits)
         .collect();
-    let stopped_names: Vec<String> = stopped.iter().map(|&i| fits[i].0.clone()).collect();
+    let stopped_names: Vec<&str> = effects
+        .iter()
+        .zip(&stopped)
+        .filter_map(|(e, &stop)| stop.then_some(e.name()))
+        .collect();
     let fits = finish(
         prep,
         coarse.as_ref(),
@@ -1052,10 +1056,11 @@ pub fn diagnose(
     };
     let mut cands: Vec<(Candidate, Option<Fitted>)> = fits
         .into_iter()
-        .map(|(name, r)| match r {
+        .zip(stopped)
+        .map(|((name, r), stop)| match r {
             Ok(f) => {
                 let mut c = judge.candidate(name, &f);
-                c.screened |= stopped_names.contains(&c.effect);
+                c.screened |= stop;
                 (c, Some(f))
             }
             Err(err) => (failed(name, &err, at_floor), None),
@@ -1430,16 +1435,15 @@ fn explain(
                 after / base.noise_floor.max(f64::MIN_POSITIVE)
             ));
             if let Some(second) = cands.get(1) {
+                let (at_least, screened) = if second.screened {
+                    ("at least ", " (screened, not fitted)")
+                } else {
+                    ("", "")
+                };
                 s.push_str(&format!(
-                    "the next best, {}, explains {}{:.0}%{}. ",
+                    "the next best, {}, explains {at_least}{:.0}%{screened}. ",
                     second.effect,
-                    if second.screened { "at least " } else { "" },
-                    100.0 * second.explained.clamp(0.0, 1.0),
-                    if second.screened {
-                        " (screened, not fitted)"
-                    } else {
-                        ""
-                    }
+                    100.0 * second.explained.clamp(0.0, 1.0)
                 ));
             }
             s.push_str(&arm.after_words());

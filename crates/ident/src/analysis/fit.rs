@@ -740,7 +740,12 @@ fn or_own(
     own: Vec<f64>,
     own_ssr: f64,
 ) -> Vec<Vec<f64>> {
-    if starts.len() == 1 && starts[0] != own && cache.ssr(&starts[0]) > own_ssr {
+    if starts.len() == 1
+        && starts[0] != own
+        && cache
+            .simulate(&starts[0])
+            .is_ok_and(|s| cache.prep.ssr(&s) > own_ssr)
+    {
         starts[0] = own;
     }
     starts
