@@ -109,3 +109,42 @@ fn dry_friction_at_the_output_shaft_is_named_and_its_torque_recovered() {
         "coulomb {got} vs {coulomb}"
     );
 }
+
+/// A sweep's candidates are screened first and fitted on only near the best screened
+/// one, fitted (and refined, when its law leaves the data above the margin): the
+/// winner's values are those of its whole fit, to the bit, and every candidate left
+/// screened stays above `SCREEN_RATIO` times the winner's squared error.
+#[test]
+fn a_sweep_diagnosis_fits_on_only_the_candidates_near_its_leader() {
+    use longreach_ident::analysis::{fit_model, SCREEN_RATIO};
+    let ds = hidden_sweep("sensor_delay", &[0.012], 11);
+    let prep = Prepared::new(&ds).unwrap();
+    let (d, base_fit, _) = diagnose(&prep, &base()).unwrap();
+    let winner = &d.candidates[0];
+    assert_eq!(winner.effect, "sensor_delay");
+    assert!(!winner.screened);
+    let whole = fit_model(
+        &prep,
+        &base_fit
+            .model
+            .with_effect(effects::find("sensor_delay").unwrap()),
+    )
+    .unwrap();
+    for (name, v) in whole.model.named_values() {
+        let got = winner.params[&name];
+        assert_eq!(got.to_bits(), v.to_bits(), "{name}: {got} vs {v}");
+    }
+    let screened: Vec<_> = d.candidates.iter().filter(|c| c.screened).collect();
+    // (the baseline misses the delay by far: every other candidate stays near it)
+    assert!(screened.len() >= 3, "{:?}", d.candidates);
+    for c in screened {
+        assert!(
+            c.nrmse.powi(2) > SCREEN_RATIO * winner.nrmse.powi(2),
+            "{}: {} vs the winner's {}",
+            c.effect,
+            c.nrmse,
+            winner.nrmse
+        );
+        assert!(c.interval_95.is_empty());
+    }
+}
