@@ -338,9 +338,7 @@ fn staged_fits(
     prep: &Prepared<'_>,
     models: &[Model],
 ) -> (Vec<Result<Fitted, IdentError>>, Vec<bool>) {
-    let mut stages: Vec<Staged<'_, '_>> = models.iter().map(|m| Staged::new(prep, m)).collect();
-    let screens: Vec<Result<Fitted, IdentError>> =
-        stages.par_iter_mut().map(Staged::screen).collect();
+    let (stages, screens) = screened(prep, models);
     let best = screens
         .iter()
         .filter_map(|r| r.as_ref().ok())
@@ -350,13 +348,37 @@ fn staged_fits(
         .iter()
         .map(|r| r.as_ref().is_ok_and(|f| f.ssr > SCREEN_RATIO * best))
         .collect();
-    let fits = stages
+    let fits = fitted_on(stages.into_iter().map(Some).collect(), screens, &stop);
+    (fits, stop)
+}
+
+/// The first stage of [`Staged`] fits: every model of `models` screened
+/// ([`Staged::screen`]), its stage kept for the second ([`fitted_on`]).
+fn screened<'p, 'a>(
+    prep: &'p Prepared<'a>,
+    models: &'p [Model],
+) -> (Vec<Staged<'p, 'a>>, Vec<Result<Fitted, IdentError>>) {
+    let mut stages: Vec<Staged<'p, 'a>> = models.iter().map(|m| Staged::new(prep, m)).collect();
+    let screens = stages.par_iter_mut().map(Staged::screen).collect();
+    (stages, screens)
+}
+
+/// The second stage of [`Staged`] fits, in order: each stage's whole fit where it is not
+/// `stop`ped, else its screen (and its screen where its stage was taken out: `None`).
+fn fitted_on(
+    stages: Vec<Option<Staged<'_, '_>>>,
+    screens: Vec<Result<Fitted, IdentError>>,
+    stop: &[bool],
+) -> Vec<Result<Fitted, IdentError>> {
+    stages
         .into_par_iter()
         .zip(screens)
         .zip(stop.par_iter())
-        .map(|((stage, screen), &stop)| if stop { screen } else { stage.fit() })
-        .collect();
-    (fits, stop)
+        .map(|((stage, screen), &stop)| match stage {
+            Some(stage) if !stop => stage.fit(),
+            _ => screen,
+        })
+        .collect()
 }
 
 /// The leader of a sweep's candidates ([`led_fits`]): its effect, the bits of its
@@ -386,15 +408,8 @@ fn led_fits(
     models: &[Model],
     base_ssr: f64,
 ) -> (Vec<Result<Fitted, IdentError>>, Vec<bool>, Option<Led>) {
-    let mut stages: Vec<Option<Staged<'_, '_>>> =
-        models.iter().map(|m| Some(Staged::new(prep, m))).collect();
-    let mut screens: Vec<Result<Fitted, IdentError>> = stages
-        .par_iter_mut()
-        .map(|s| match s {
-            Some(s) => s.screen(),
-            None => Err(IdentError::NoStartFitted { starts: 0 }),
-        })
-        .collect();
+    let (stages, screens) = screened(prep, models);
+    let mut stages: Vec<Option<Staged<'_, '_>>> = stages.into_iter().map(Some).collect();
     let lead = (0..screens.len())
         .filter(|&i| screens[i].is_ok())
         .min_by(|&a, &b| {
@@ -432,15 +447,8 @@ fn led_fits(
         .enumerate()
         .map(|(i, r)| Some(i) != lead && r.as_ref().is_ok_and(|f| f.ssr > SCREEN_RATIO * reference))
         .collect();
-    let mut fits: Vec<Result<Fitted, IdentError>> = stages
-        .into_par_iter()
-        .zip(std::mem::take(&mut screens))
-        .zip(stop.par_iter())
-        .map(|((stage, screen), &stop)| match stage {
-            Some(stage) if !stop => stage.fit(),
-            _ => screen,
-        })
-        .collect();
+    // (the leader's stage was taken out: its fit replaces its screen)
+    let mut fits = fitted_on(stages, screens, &stop);
     if let (Some(k), Some(f)) = (lead, lead_fit) {
         fits[k] = f;
     }
@@ -1122,7 +1130,6 @@ pub fn diagnose(
     };
     let models: Vec<Model> = effects.iter().map(|e| searched.with_effect(*e)).collect();
     let mut led = None;
-    let mut led_refined = false;
     let (fits, stopped) = if at_floor {
         let fits = models.par_iter().map(|m| screen_model(search, m)).collect();
         (fits, vec![false; models.len()])
@@ -1130,9 +1137,6 @@ pub fn diagnose(
         staged_fits(search, &models)
     } else if prep.kind == DataKind::SineSweep && !release {
         let (fits, stopped, l) = led_fits(search, &models, base.ssr);
-        led_refined = l
-            .as_ref()
-            .is_some_and(|l| matches!(&l.refined, Ok(Some((r, _))) if r.kept));
         led = l;
         (fits, stopped)
     } else {
@@ -1186,7 +1190,10 @@ pub fn diagnose(
         } else {
             format!(
                 "the squared error of the best screened candidate, fitted{}",
-                if led_refined {
+                if led
+                    .as_ref()
+                    .is_some_and(|l| matches!(&l.refined, Ok(Some((r, _))) if r.kept))
+                {
                     " and its law refined"
                 } else {
                     ""
