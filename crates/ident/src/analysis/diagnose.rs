@@ -899,8 +899,11 @@ fn pair_step(
             let k = ba.effects.len() - 1;
             ba.effects.insert(k, ea.clone());
             let mut starts = vec![ab, ba];
-            // (a sweep's search is a grid on the analytic response, cheap; elsewhere it
-            // simulates its whole grid, which the coordinate scan below replaces)
+            // (a sweep's search is a grid on the analytic response, cheap; a specimen's
+            // simulates its grid, also cheap (a relaxation in milliseconds), and finds
+            // basins the singles' values miss: a ratchet with a stiffening rope reached
+            // 0.99x the floor from it, 1.9x from the singles'; an arm's grid is too
+            // dear, the coordinate scan below stands in for it)
             if matches!(
                 prep.kind,
                 DataKind::SineSweep | DataKind::Relaxation | DataKind::Cyclic
@@ -1102,7 +1105,9 @@ fn refit_pair_members(
 ///    ([`finish`]);
 /// 3. the best one's law refined in its shape-free form when it stays above
 ///    [`REFINE_MARGIN`] x the floor;
-/// 4. if it still does, the pair step ([`pair_step`]): two effects at once;
+/// 4. if it still does (or, on a specimen's data, it needs a table and stays above
+///    [`FLOOR_MARGIN`]: [`tabled_single`]), the pair step ([`pair_step`]): two
+///    effects at once;
 /// 5. the verdict: a decisive pair (against the best single, and ahead of the next
 ///    pair) or a decisive single, named only when its model reaches [`NAME_MARGIN`] x
 ///    the floor; otherwise the best is the lead, and the residual's signatures say
