@@ -483,7 +483,7 @@ impl RigModel {
             x += dx;
             // Tolerances the nested rope solve of non-linear laws can meet: 1e-12 rad,
             // and a carriage strain of 1e-14 (tension error ~1e-9 N).
-            let scaled = (dphi.abs() / (1e-12 * (1.0 + phi.abs()))).max(dx.abs() / (1e-14 * l));
+            let (tol_phi, tol_x) = (1e-12 * (1.0 + phi.abs()), 1e-14 * l);
             // Newton's error after an update `d` is about `K d^2`, `K` read off the
             // update before (`d / d_prev^2`), while both ropes stay on their smooth
             // non-linear piece. When that error is below a hundredth of the tolerance,
@@ -492,29 +492,33 @@ impl RigModel {
             // update's square, is far below the tolerance's): neither the next update
             // nor the evaluation here is made. Two rope evaluations a step where there
             // were four, on a stiffening rope's sweep.
-            if smooth(&e0.pieces)
-                && prev_scaled.is_some_and(|d0| scaled * scaled * scaled <= 1e-2 * d0 * d0)
-            {
-                let f = [f1 + k1 * (dx - r2 * dphi), f2 + k2 * (dx + r2 * dphi)];
-                if f[0] > 0.0 && f[1] > 0.0 {
-                    converged = Some(ideal::IdealEval {
-                        f,
-                        e: [
-                            self.strain(0, x, input_rad, phi),
-                            self.strain(1, x, input_rad, phi),
-                        ],
-                        ..e0
-                    });
-                    break;
+            // (read only there: a piecewise-affine rope's step pays nothing for it)
+            prev_scaled = if smooth(&e0.pieces) {
+                let scaled = (dphi.abs() / tol_phi).max(dx.abs() / tol_x);
+                if prev_scaled.is_some_and(|d0| scaled * scaled * scaled <= 1e-2 * d0 * d0) {
+                    let f = [f1 + k1 * (dx - r2 * dphi), f2 + k2 * (dx + r2 * dphi)];
+                    if f[0] > 0.0 && f[1] > 0.0 {
+                        converged = Some(ideal::IdealEval {
+                            f,
+                            e: [
+                                self.strain(0, x, input_rad, phi),
+                                self.strain(1, x, input_rad, phi),
+                            ],
+                            ..e0
+                        });
+                        break;
+                    }
                 }
-            }
-            prev_scaled = smooth(&e0.pieces).then_some(scaled);
+                Some(scaled)
+            } else {
+                None
+            };
             let next = eval(phi, &mut x);
             ev = next;
             let Some(e1) = next else { continue };
             let affine = |p: &[Piece; 2]| p.iter().all(|q| *q != Piece::Nonlinear);
             let same_piece = affine(&e0.pieces) && affine(&e1.pieces) && e1.pieces == e0.pieces;
-            if same_piece || scaled <= 1.0 {
+            if same_piece || (dphi.abs() <= tol_phi && dx.abs() <= tol_x) {
                 converged = Some(e1);
                 break;
             }

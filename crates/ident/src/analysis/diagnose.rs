@@ -775,17 +775,11 @@ fn decisive_first(
         let second = cands.get(1).and_then(|(_, f)| f.as_ref());
         let second_left = second.map_or(base_ssr, |f| f.ssr.min(base_ssr));
         let separated = second_left - ssr_floor >= 2.0 * (best_ssr - ssr_floor).max(0.0);
-        let shaped = |f: Option<&Fitted>| {
-            f.is_some_and(|f| {
-                f.model
-                    .effects
-                    .iter()
-                    .skip(base_effects)
-                    .any(|u| u.shape.is_some())
-            })
-        };
-        let confounded =
-            reaches_floor && shaped(fit.as_ref()) && second.is_some_and(|s| at_floor(s.ssr));
+        let confounded = reaches_floor
+            && fit
+                .as_ref()
+                .is_some_and(|f| holds_new_table(f, base_effects))
+            && second.is_some_and(|s| at_floor(s.ssr));
         best.explained >= MIN_EXPLAINED
             && !confounded
             && best.score > MIN_SCORE
@@ -820,12 +814,7 @@ fn pair_step(
     parametric: &[(Candidate, Option<Fitted>)],
 ) -> Vec<(Candidate, Option<Fitted>)> {
     let search = coarse.unwrap_or(prep);
-    let catalog = |c: &Candidate| {
-        parametric
-            .iter()
-            .find(|(p, _)| p.effect == c.effect)
-            .and_then(|(_, f)| f.as_ref())
-    };
+    let catalog = |c: &Candidate| catalog_fit(parametric, &c.effect);
     let mut tops: Vec<&Fitted> = cands
         .iter()
         .filter(|(c, f)| c.score > MIN_SCORE && f.is_some())
@@ -1011,11 +1000,28 @@ fn refine_best_pair(
 fn tabled_single(kind: DataKind, f: &Fitted, base_effects: usize) -> bool {
     matches!(kind, DataKind::Relaxation | DataKind::Cyclic)
         && f.nrmse > FLOOR_MARGIN * f.noise_floor
-        && f.model
-            .effects
-            .iter()
-            .skip(base_effects)
-            .any(|u| u.shape.is_some())
+        && holds_new_table(f, base_effects)
+}
+
+/// Whether an effect `f` adds to the baseline's first `base_effects` holds a table.
+fn holds_new_table(f: &Fitted, base_effects: usize) -> bool {
+    f.model
+        .effects
+        .iter()
+        .skip(base_effects)
+        .any(|u| u.shape.is_some())
+}
+
+/// Candidate `effect`'s fit with its catalog law, from `parametric` (the candidates
+/// before any refinement of their shape).
+fn catalog_fit<'f>(
+    parametric: &'f [(Candidate, Option<Fitted>)],
+    effect: &str,
+) -> Option<&'f Fitted> {
+    parametric
+        .iter()
+        .find(|(c, _)| c.effect == effect)
+        .and_then(|(_, f)| f.as_ref())
 }
 
 /// Whether the best pair, in its catalog laws, explains at least [`MIN_EXPLAINED`] of
@@ -1029,11 +1035,7 @@ fn catalog_pair_decisive(
     let (Some((_, Some(pair))), Some((single, _))) = (pairs.first(), cands.first()) else {
         return false;
     };
-    let Some(catalog) = parametric
-        .iter()
-        .find(|(c, _)| c.effect == single.effect)
-        .and_then(|(_, f)| f.as_ref())
-    else {
+    let Some(catalog) = catalog_fit(parametric, &single.effect) else {
         return false;
     };
     let excess = catalog.ssr - ssr_floor;
