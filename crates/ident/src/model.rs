@@ -540,6 +540,13 @@ impl Model {
         }
     }
 
+    /// True when slot `s` is the rise of a table that never falls ([`ShapeUse`]):
+    /// linear, bounded below by 0 and above by the shape's largest value.
+    pub fn is_rise(&self, s: &Slot) -> bool {
+        let p = self.param(s);
+        matches!(s.owner, Owner::Shape(_)) && !p.log_scale && p.lower == 0.0
+    }
+
     /// Fitting specs of the free slots (starting at the current values).
     pub fn fit_specs(&self, n_runs: usize) -> Vec<ParamSpec> {
         self.free_slots(n_runs)

@@ -467,3 +467,54 @@ fn evaluation_budget_counts_jacobians_and_stops_at_an_accepted_point() {
     assert!(free.converged && free.evaluations > optimiser + p + 1);
     assert!(free.ssr < r.ssr);
 }
+
+/// The rises of a table that never falls (`y = 1 + r1 min(x, 1) + r2 max(x - 1, 0)`),
+/// one started 200 times below its true value: on `[0, inf)` (the one-sided map, as a
+/// sweep's refinement fits them, `analysis::fit::fit_specs`) the fit converges in a
+/// few Jacobians; between 0 and a bound far above (`[0, 100]`, a stiffness factor's
+/// largest value) the logistic map's tail moves the small rise by factors, a trust
+/// region at a time, and the same fit takes several times the evaluations.
+#[test]
+fn a_rise_far_below_its_bound_converges_on_the_one_sided_map() {
+    struct Rises(Vec<f64>, Vec<f64>);
+    impl Residuals for Rises {
+        fn residuals(&self, p: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
+            out.clear();
+            out.extend(
+                self.0
+                    .iter()
+                    .zip(&self.1)
+                    .map(|(x, y)| 1.0 + p[0] * x.min(1.0) + p[1] * (x - 1.0).max(0.0) - y),
+            );
+            Ok(())
+        }
+    }
+    let x: Vec<f64> = (0..41).map(|i| 0.05 * i as f64).collect();
+    let (r1, r2) = (0.5, 0.02);
+    let y: Vec<f64> = x
+        .iter()
+        .map(|x| 1.0 + r1 * x.min(1.0) + r2 * (x - 1.0).max(0.0))
+        .collect();
+    let problem = Rises(x, y);
+    let specs = |upper: f64| {
+        vec![
+            ParamSpec::new("r1", "1", 0.3).with_bounds(0.0, upper),
+            ParamSpec::new("r2", "1", 1e-4).with_bounds(0.0, upper),
+        ]
+    };
+    let opts = FitOptions::default();
+    let one_sided = fit(&problem, &specs(f64::INFINITY), &opts).unwrap();
+    let logistic = fit(&problem, &specs(100.0), &opts).unwrap();
+    println!(
+        "one-sided: {} evaluations {:?}; logistic: {} evaluations {:?}",
+        one_sided.evaluations, one_sided.values, logistic.evaluations, logistic.values
+    );
+    assert!(one_sided.converged, "{}", one_sided.termination);
+    assert!((one_sided.values[0] - r1).abs() < 1e-6 && (one_sided.values[1] - r2).abs() < 1e-6);
+    assert!(
+        logistic.evaluations >= 2 * one_sided.evaluations,
+        "one-sided {} evaluations, logistic {}",
+        one_sided.evaluations,
+        logistic.evaluations
+    );
+}
