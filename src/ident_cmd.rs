@@ -76,6 +76,12 @@ pub struct DiagnoseArgs {
     /// `batch` and `modes` (docs/models.md, "Writing an arm scenario").
     #[arg(long)]
     write_scenario: Option<PathBuf>,
+    /// Leave this registered effect out of the candidates (repeatable): an effect known
+    /// to be absent (e.g. `relay_friction` on ideal idlers, which also saves its fits),
+    /// or the catalog without it, to see what the diagnosis says of data whose effect
+    /// it does not hold.
+    #[arg(long, value_name = "EFFECT")]
+    without: Vec<String>,
     #[command(flatten)]
     rerun: RerunArgs,
 }
@@ -531,6 +537,20 @@ fn missing_words(d: &analysis::Diagnosis) -> String {
 
 /// Runs `diagnose`.
 pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
+    if let Some(w) = a
+        .without
+        .iter()
+        .find(|w| longreach_drive::effects::find(w).is_none())
+    {
+        let known: Vec<&str> = longreach_drive::effects::REGISTRY
+            .iter()
+            .map(|e| e.name())
+            .collect();
+        bail!(
+            "--without {w}: no registered effect has that name\n  fix: give one of {}",
+            known.join(", ")
+        );
+    }
     if let Some(p) = &a.write_model {
         crate::output::check_output_file(p, "--write-model")?;
     }
@@ -547,7 +567,14 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
             return Err(e);
         }
     };
-    let (d, base, winner) = analysis::diagnose(&prep, &model).map_err(message)?;
+    let without: Vec<&str> = a.without.iter().map(String::as_str).collect();
+    let (d, base, winner) = match analysis::diagnose_without(&prep, &model, &without) {
+        Ok(r) => r,
+        Err(e) => {
+            rec.discard();
+            return Err(message(e));
+        }
+    };
     if matches!(ds.kind, longreach_ident::DatasetKind::ArmMoves(_)) {
         // The arm plant's compared channel is every channel stacked: draw the arms
         // and the channels themselves instead.

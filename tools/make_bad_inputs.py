@@ -333,6 +333,7 @@ ds('unknown_rope', {}, [], 2, ['dyneema9'], toml=RELAX_TOML.replace('rope = "dyn
 ds('zero_motion_compare', {}, [], 2, ['does not vary', 'fix'], csv='time_s,tension_n\n' + ''.join(f'{0.1*i:.2f},1000.0\n' for i in range(30)))
 ds('zero_motion_fit', {}, [], 2, ['does not vary', 'fix'], cmd='fit', csv='time_s,tension_n\n' + ''.join(f'{0.1*i:.2f},1000.0\n' for i in range(30)))
 case('dataset', 'not_utf8_csv', {'ds/dataset.toml': RELAX_TOML, 'ds/relax.csv': b'time_s,tension_n\n0.0,\xff\xfe\n'}, ['compare', 'ds'], 2, ['relax.csv'])
+ds('diagnose_without_unknown', {}, ['--without', 'backlash'], 2, ['--without backlash', 'no registered effect', 'relay_friction'], cmd='diagnose')
 ds('report_is_a_file', {'rep': 'notes'}, ['--report', 'rep'], 2, ['--report', 'not a folder', 'fix'], keep=['rep'])
 ds('json_into_folder', {'c.json/mine.txt': 'mine'}, ['--json', 'c.json'], 2, ['c.json', 'existing folder', 'fix'], keep=['c.json/mine.txt'])
 

@@ -89,6 +89,61 @@ fn synth_diagnose_write_model_compare_error_falls() {
     );
 }
 
+/// `diagnose --without`: the catalog without the effect in the data (a relaxation
+/// holding a second retardation time) names nothing, says what it left out, and an
+/// unknown name is refused with the registered ones before any work.
+#[test]
+fn diagnose_without_the_hidden_effect_names_nothing_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let ds = dir.path().join("relax_kelvin");
+    let (ok, _, err) = longreach(&[
+        "synth",
+        "--kind",
+        "relaxation",
+        "--out",
+        ds.to_str().unwrap(),
+        "--seed",
+        "5",
+        "--effect",
+        "extra_retardation=1.5e5,3e6",
+    ]);
+    assert!(ok, "{err}");
+    let dj = dir.path().join("d.json");
+    let (ok, out, err) = longreach(&[
+        "diagnose",
+        ds.to_str().unwrap(),
+        "--without",
+        "extra_retardation",
+        "--json",
+        dj.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("missing effect: none found"), "{out}");
+    let d = json(&dj);
+    let names: Vec<&str> = d["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["effect"].as_str().unwrap())
+        .collect();
+    assert!(
+        !names.contains(&"extra_retardation") && names.len() >= 3,
+        "{names:?}"
+    );
+    assert!(d["missing_effect"].is_null());
+    let why = d["explanation"].as_str().unwrap();
+    assert!(
+        why.contains("extra_retardation (left out on request)"),
+        "{why}"
+    );
+    let (ok, _, err) = longreach(&["diagnose", ds.to_str().unwrap(), "--without", "backlash"]);
+    assert!(!ok);
+    assert!(
+        err.contains("--without backlash") && err.contains("relay_friction"),
+        "{err}"
+    );
+}
+
 #[test]
 fn compare_relax_control_with_report() {
     let dir = tempfile::tempdir().unwrap();

@@ -45,6 +45,14 @@ pub enum IdentError {
     /// The least-squares fit failed.
     #[error(transparent)]
     Fit(#[from] FitError),
+    /// An effect named to be left out of a diagnosis is not registered.
+    #[error("unknown effect `{name}` to leave out of the candidates; fix: give one of the registered effects: {known}")]
+    UnknownEffect {
+        /// The name given.
+        name: String,
+        /// The registered effects, comma-separated.
+        known: String,
+    },
     /// No start of the starting grid could be simulated (screening a model).
     #[error("every start failed to simulate")]
     NoStartSimulated {

@@ -21,7 +21,7 @@
 //! `=without` runs one of the two.
 
 use longreach_drive::effects::{self, DataKind, Effect, REGISTRY};
-use longreach_ident::analysis::{diagnose, Prepared};
+use longreach_ident::analysis::{diagnose, diagnose_without, Prepared};
 use longreach_ident::model::Model;
 use longreach_ident::synth::{self, RelaxationOptions, SweepOptions};
 use longreach_ident::{Dataset, DatasetKind, RelaxationDataset, RelaxationSpecimen};
@@ -85,6 +85,7 @@ fn run_case(
     seed: u64,
     variant: usize,
     tensions: bool,
+    without: &[&str],
 ) -> Verdict {
     let base = base_model(rope, kind);
     let mut truth = base.clone();
@@ -127,12 +128,12 @@ fn run_case(
         }
     }
     let t0 = std::time::Instant::now();
-    let (d, base_fit, _) = diagnose(&prep, &base).unwrap();
+    let (d, base_fit, _) = diagnose_without(&prep, &base, without).unwrap();
     println!(
-        "{kind:?} {rope} hidden={:?} seed={seed} tensions={} -> missing={:?} ranking={:?} ({:.1} s)",
+        "{kind:?} {rope} hidden={:?} seed={seed} tensions={} without={without:?} -> missing={:?} ranking={:?} ({:.1} s)",
         hidden.map(|h| (h.0.name(), h.1.to_vec())),
         prep.has_channels(),
-        d.missing_effect,
+        d.missing_effects,
         d.candidates
             .iter()
             .map(|c| (c.effect.as_str(), (c.score * 10.0).round() / 10.0))
@@ -157,6 +158,12 @@ fn run_case(
     Verdict {
         missing: d.missing_effect,
         first: d.candidates.first().map(|c| c.effect.clone()),
+        named: d.missing_effects.clone(),
+        lead: d
+            .lead
+            .as_ref()
+            .map(|l| (l.effects.join("+"), l.ratio_to_floor)),
+        base_ratio: base_fit.nrmse / base_fit.noise_floor,
     }
 }
 
@@ -166,6 +173,12 @@ struct Verdict {
     missing: Option<String>,
     /// The first-ranked candidate.
     first: Option<String>,
+    /// Every effect named missing (a pair names two).
+    named: Vec<String>,
+    /// The lead when nothing was named: its effects and its NRMSE over the floor.
+    lead: Option<(String, f64)>,
+    /// The baseline's NRMSE over the noise floor.
+    base_ratio: f64,
 }
 
 /// The tension variants a dataset of `kind` is diagnosed in: sweeps with and without
@@ -237,7 +250,7 @@ fn confusion_matrix_full() {
                 let s = 100 + i as u64 * 10 + seed;
                 for &t in variants(kind) {
                     control.1 += 1;
-                    if run_case(kind, rope, None, s, seed as usize, t)
+                    if run_case(kind, rope, None, s, seed as usize, t, &[])
                         .missing
                         .is_none()
                     {
@@ -264,7 +277,7 @@ fn confusion_matrix_full() {
                     let s = 1000 + i as u64 * 10 + j as u64;
                     for &t in variants(kind) {
                         n += 1;
-                        let v = run_case(kind, rope, Some((e, v)), s, j, t);
+                        let v = run_case(kind, rope, Some((e, v)), s, j, t, &[]);
                         decisive += usize::from(v.missing.as_deref() == Some(e.name()));
                         first += usize::from(v.first.as_deref() == Some(e.name()));
                     }
@@ -295,6 +308,89 @@ fn confusion_matrix_full() {
     assert!(
         !rows.is_empty() || control.1 > 0,
         "the filters selected no dataset"
+    );
+}
+
+/// Held-out study: the catalog without the effect in the data. For every registered
+/// effect of the rig's and the specimen's data, a dataset is made with it hidden (its
+/// stronger setting, both ropes, sweeps with their tension channels) and diagnosed with
+/// that effect left out of the candidates ([`diagnose_without`]): the data hold an
+/// effect outside the catalog the diagnosis has, as data from another simulator or a
+/// real rig may. Every name it gives is then a false name; the right answer is none
+/// found, with a lead and its signatures. Prints a row per dataset (the baseline's and
+/// the lead's NRMSE over the floor) and asserts that at most 5% of the datasets get a
+/// name. `CONFUSION_KINDS`, `CONFUSION_EFFECTS`, `CONFUSION_ROPES` filter as for the
+/// full study:
+/// `cargo test -p longreach-ident --release --test confusion confusion_held_out -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn confusion_held_out() {
+    let ropes = ["dyneema2", "vectran2"];
+    let only = std::env::var("CONFUSION_KINDS").unwrap_or_default();
+    let list = |var: &str| -> Vec<String> {
+        std::env::var(var)
+            .unwrap_or_default()
+            .split(',')
+            .map(|s| s.trim().to_string())
+            .filter(|s| !s.is_empty())
+            .collect()
+    };
+    let (only_effects, only_ropes) = (list("CONFUSION_EFFECTS"), list("CONFUSION_ROPES"));
+    let wanted = |l: &[String], x: &str| l.is_empty() || l.iter().any(|s| s == x);
+    let t0 = std::time::Instant::now();
+    let mut rows = Vec::new();
+    for kind in [DataKind::Relaxation, DataKind::SineSweep] {
+        let name = if kind == DataKind::Relaxation {
+            "relaxation"
+        } else {
+            "sine_sweep"
+        };
+        if !only.is_empty() && !only.contains(name) {
+            continue;
+        }
+        for e in REGISTRY
+            .iter()
+            .copied()
+            .filter(|e| e.applies_to(kind) && wanted(&only_effects, e.name()))
+        {
+            let set = settings(e, kind);
+            let Some(v) = set.last() else { continue };
+            for (i, rope) in ropes.iter().enumerate() {
+                if !wanted(&only_ropes, rope) {
+                    continue;
+                }
+                let s = 3000 + i as u64 * 10;
+                let v = run_case(kind, rope, Some((e, v)), s, 1, true, &[e.name()]);
+                rows.push((name, e.name(), *rope, v));
+            }
+        }
+    }
+    println!("| kind | held-out effect | rope | baseline / floor | named | lead (not named) |\n|---|---|---|---|---|---|");
+    for (k, e, r, v) in &rows {
+        println!(
+            "| {k} | {e} | {r} | {:.2}x | {} | {} |",
+            v.base_ratio,
+            if v.named.is_empty() {
+                "none found".to_string()
+            } else {
+                v.named.join(" + ")
+            },
+            v.lead
+                .as_ref()
+                .map_or("-".to_string(), |(l, x)| format!("{l} at {x:.2}x")),
+        );
+    }
+    let named = rows.iter().filter(|r| !r.3.named.is_empty()).count();
+    println!(
+        "false names: {named} of {} datasets; wall time {:.0} s",
+        rows.len(),
+        t0.elapsed().as_secs_f64()
+    );
+    assert!(!rows.is_empty(), "the filters selected no dataset");
+    assert!(
+        named as f64 <= 0.05 * rows.len() as f64,
+        "{named} of {} datasets named an effect the catalog was given without the one in the data",
+        rows.len()
     );
 }
 

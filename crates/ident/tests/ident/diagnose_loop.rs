@@ -7,7 +7,7 @@
 use std::path::PathBuf;
 
 use longreach_drive::effects::{self, DataKind};
-use longreach_ident::analysis::{compare, diagnose, fit_model, Prepared};
+use longreach_ident::analysis::{compare, diagnose, diagnose_without, fit_model, Prepared};
 use longreach_ident::model::{BaseParam, Model, ModelError, ParamDef};
 use longreach_ident::synth::{self, CyclicOptions, RelaxationOptions};
 use longreach_ident::{Dataset, IdentError};
@@ -165,6 +165,14 @@ fn errors_are_typed_and_keep_their_messages() {
         "{e:?}"
     );
     assert_eq!(e.to_string(), "`k3` needs a four-element or Flory law");
+    // an effect to leave out that the registry does not hold: refused by name, with
+    // the registered ones, before any fit
+    let e = diagnose_without(&prep, &relax_base(), &["backlash"]).unwrap_err();
+    assert!(
+        matches!(&e, IdentError::UnknownEffect { name, known } if name == "backlash" && known.contains("plastic_ratchet")),
+        "{e:?}"
+    );
+    assert!(e.to_string().contains("fix: give one of"), "{e}");
 
     let mut m = relax_base().with_effect(effects::find("internal_damping").unwrap());
     m.effects[0].params[0].value = -1.0;
