@@ -26,10 +26,10 @@ fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
-#[test]
-fn synth_diagnose_write_model_compare_error_falls() {
-    let dir = tempfile::tempdir().unwrap();
-    let ds = dir.path().join("relax_kelvin");
+/// `synth` of a relaxation holding a second retardation time (1.5e5 N, 3e6 N*s), seed
+/// 5, into `dir/relax_kelvin`.
+fn synth_relax_kelvin(dir: &Path) -> PathBuf {
+    let ds = dir.join("relax_kelvin");
     let (ok, _, err) = longreach(&[
         "synth",
         "--kind",
@@ -42,6 +42,13 @@ fn synth_diagnose_write_model_compare_error_falls() {
         "extra_retardation=1.5e5,3e6",
     ]);
     assert!(ok, "{err}");
+    ds
+}
+
+#[test]
+fn synth_diagnose_write_model_compare_error_falls() {
+    let dir = tempfile::tempdir().unwrap();
+    let ds = synth_relax_kelvin(dir.path());
     let dj = dir.path().join("d.json");
     let model = dir.path().join("m.toml");
     let (ok, out, err) = longreach(&[
@@ -95,19 +102,7 @@ fn synth_diagnose_write_model_compare_error_falls() {
 #[test]
 fn diagnose_without_the_hidden_effect_names_nothing_and_says_so() {
     let dir = tempfile::tempdir().unwrap();
-    let ds = dir.path().join("relax_kelvin");
-    let (ok, _, err) = longreach(&[
-        "synth",
-        "--kind",
-        "relaxation",
-        "--out",
-        ds.to_str().unwrap(),
-        "--seed",
-        "5",
-        "--effect",
-        "extra_retardation=1.5e5,3e6",
-    ]);
-    assert!(ok, "{err}");
+    let ds = synth_relax_kelvin(dir.path());
     let dj = dir.path().join("d.json");
     let (ok, out, err) = longreach(&[
         "diagnose",

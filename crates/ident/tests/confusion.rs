@@ -26,6 +26,30 @@ use longreach_ident::model::Model;
 use longreach_ident::synth::{self, RelaxationOptions, SweepOptions};
 use longreach_ident::{Dataset, DatasetKind, RelaxationDataset, RelaxationSpecimen};
 
+/// The comma-separated names of the environment variable `var` (a study's filter;
+/// empty: no filter).
+fn list(var: &str) -> Vec<String> {
+    std::env::var(var)
+        .unwrap_or_default()
+        .split(',')
+        .map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty())
+        .collect()
+}
+
+/// The data kinds a study runs, with their names: both, or the one
+/// `CONFUSION_KINDS=relaxation|sine_sweep` selects.
+fn kinds() -> Vec<(DataKind, &'static str)> {
+    let only = std::env::var("CONFUSION_KINDS").unwrap_or_default();
+    [
+        (DataKind::Relaxation, "relaxation"),
+        (DataKind::SineSweep, "sine_sweep"),
+    ]
+    .into_iter()
+    .filter(|(_, name)| only.is_empty() || only.contains(name))
+    .collect()
+}
+
 fn base_model(rope: &str, kind: DataKind) -> Model {
     let ds = Dataset {
         dir: Default::default(),
@@ -216,32 +240,14 @@ fn confusion_matrix_full() {
     let mut rows = Vec::new();
     let mut control = (0, 0);
     let t0 = std::time::Instant::now();
-    // CONFUSION_KINDS=relaxation or =sine_sweep restricts the study to one kind.
-    let only = std::env::var("CONFUSION_KINDS").unwrap_or_default();
     // CONFUSION_EFFECTS, CONFUSION_ROPES, CONFUSION_SETTINGS: see the header.
-    let list = |var: &str| -> Vec<String> {
-        std::env::var(var)
-            .unwrap_or_default()
-            .split(',')
-            .map(|s| s.trim().to_string())
-            .filter(|s| !s.is_empty())
-            .collect()
-    };
     let (only_effects, only_ropes, only_settings) = (
         list("CONFUSION_EFFECTS"),
         list("CONFUSION_ROPES"),
         list("CONFUSION_SETTINGS"),
     );
     let wanted = |l: &[String], x: &str| l.is_empty() || l.iter().any(|s| s == x);
-    for kind in [DataKind::Relaxation, DataKind::SineSweep] {
-        let name = if kind == DataKind::Relaxation {
-            "relaxation"
-        } else {
-            "sine_sweep"
-        };
-        if !only.is_empty() && !only.contains(name) {
-            continue;
-        }
+    for (kind, _) in kinds() {
         for (i, rope) in ropes.iter().enumerate() {
             if !wanted(&only_effects, "control") || !wanted(&only_ropes, rope) {
                 continue;
@@ -326,28 +332,11 @@ fn confusion_matrix_full() {
 #[ignore]
 fn confusion_held_out() {
     let ropes = ["dyneema2", "vectran2"];
-    let only = std::env::var("CONFUSION_KINDS").unwrap_or_default();
-    let list = |var: &str| -> Vec<String> {
-        std::env::var(var)
-            .unwrap_or_default()
-            .split(',')
-            .map(|s| s.trim().to_string())
-            .filter(|s| !s.is_empty())
-            .collect()
-    };
     let (only_effects, only_ropes) = (list("CONFUSION_EFFECTS"), list("CONFUSION_ROPES"));
     let wanted = |l: &[String], x: &str| l.is_empty() || l.iter().any(|s| s == x);
     let t0 = std::time::Instant::now();
     let mut rows = Vec::new();
-    for kind in [DataKind::Relaxation, DataKind::SineSweep] {
-        let name = if kind == DataKind::Relaxation {
-            "relaxation"
-        } else {
-            "sine_sweep"
-        };
-        if !only.is_empty() && !only.contains(name) {
-            continue;
-        }
+    for (kind, name) in kinds() {
         for e in REGISTRY
             .iter()
             .copied()
@@ -735,14 +724,6 @@ fn pair_cases(rope: &str) -> Vec<(DataKind, [(&'static str, Vec<f64>); 2])> {
 #[test]
 #[ignore]
 fn confusion_extended() {
-    let list = |var: &str| -> Vec<String> {
-        std::env::var(var)
-            .unwrap_or_default()
-            .split(',')
-            .map(|s| s.trim().to_string())
-            .filter(|s| !s.is_empty())
-            .collect()
-    };
     let parts = list("EXTENDED_PARTS");
     let only_effects = list("CONFUSION_EFFECTS");
     let only_ropes = list("CONFUSION_ROPES");
