@@ -2,8 +2,13 @@
 """Writes the bad-input corpus tests/bad_inputs/ (run from the repo root, with a built
 longreach: LONGREACH_BIN, default target/debug/longreach, makes the journals).
 Edit the cases here and run it again; tests/cli/bad_inputs.rs runs them."""
-import os, shutil, json
+import os, shutil, json, sys
 ROOT = 'tests/bad_inputs'
+# The binary is run from temporary folders: its path is made absolute here, and a
+# missing one stops the script before it touches the corpus.
+BIN = os.path.abspath(os.environ.get('LONGREACH_BIN', 'target/debug/longreach'))
+if not os.access(BIN, os.X_OK):
+    sys.exit(f'{BIN}: no longreach binary; build it (cargo build) or set LONGREACH_BIN')
 cases = []
 
 def q(s):
@@ -404,7 +409,6 @@ print(len(cases), 'cases')
 
 # ---------------------------------------------------------------- journals (made by the binary, then edited)
 import subprocess, tempfile
-BIN = os.environ.get('LONGREACH_BIN', 'target/debug/longreach')
 def make_journal(shard=None):
     d = tempfile.mkdtemp()
     open(os.path.join(d, 'batch.toml'), 'w').write(BATCH)
