@@ -537,19 +537,10 @@ fn missing_words(d: &analysis::Diagnosis) -> String {
 
 /// Runs `diagnose`.
 pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
-    if let Some(w) = a
-        .without
-        .iter()
-        .find(|w| longreach_drive::effects::find(w).is_none())
-    {
-        let known: Vec<&str> = longreach_drive::effects::REGISTRY
-            .iter()
-            .map(|e| e.name())
-            .collect();
-        bail!(
-            "--without {w}: no registered effect has that name\n  fix: give one of {}",
-            known.join(", ")
-        );
+    let without: Vec<&str> = a.without.iter().map(String::as_str).collect();
+    // (before any work: the library checks the list again, at no cost)
+    if let Err(e) = analysis::check_registered(&without) {
+        bail!("--without {e}");
     }
     if let Some(p) = &a.write_model {
         crate::output::check_output_file(p, "--write-model")?;
@@ -567,7 +558,6 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
             return Err(e);
         }
     };
-    let without: Vec<&str> = a.without.iter().map(String::as_str).collect();
     let (d, base, winner) = match analysis::diagnose_without(&prep, &model, &without) {
         Ok(r) => r,
         Err(e) => {

@@ -46,7 +46,7 @@ pub enum IdentError {
     #[error(transparent)]
     Fit(#[from] FitError),
     /// An effect named to be left out of a diagnosis is not registered.
-    #[error("unknown effect `{name}` to leave out of the candidates; fix: give one of the registered effects: {known}")]
+    #[error("{name}: no registered effect has that name\n  fix: give one of {known}")]
     UnknownEffect {
         /// The name given.
         name: String,

@@ -1206,6 +1206,26 @@ pub fn diagnose(
     diagnose_without(prep, model, &[])
 }
 
+/// Refuses the first of `names` the effect registry does not hold
+/// ([`IdentError::UnknownEffect`], with the registered names): the check of
+/// [`diagnose_without`]'s list, for a caller that wants it before any work.
+pub fn check_registered(names: &[&str]) -> Result<(), IdentError> {
+    match names
+        .iter()
+        .find(|w| longreach_drive::effects::find(w).is_none())
+    {
+        None => Ok(()),
+        Some(w) => Err(IdentError::UnknownEffect {
+            name: (*w).to_string(),
+            known: REGISTRY
+                .iter()
+                .map(|e| e.name())
+                .collect::<Vec<_>>()
+                .join(", "),
+        }),
+    }
+}
+
 /// [`diagnose`] with the registered effects named in `without` left out of the
 /// candidates (each said so in the explanation): an effect the user knows is absent
 /// (ideal relay pulleys, say), or the catalog as it would be without an effect, to
@@ -1218,18 +1238,7 @@ pub fn diagnose_without(
     model: &Model,
     without: &[&str],
 ) -> Result<(Diagnosis, Fitted, Option<Fitted>), IdentError> {
-    for w in without {
-        if longreach_drive::effects::find(w).is_none() {
-            return Err(IdentError::UnknownEffect {
-                name: (*w).to_string(),
-                known: REGISTRY
-                    .iter()
-                    .map(|e| e.name())
-                    .collect::<Vec<_>>()
-                    .join(", "),
-            });
-        }
-    }
+    check_registered(without)?;
     // (an arm's searches at its coarse step, finished at the chosen one: `finish`)
     let coarse = prep.coarse_twin()?;
     let search = coarse.as_ref().unwrap_or(prep);

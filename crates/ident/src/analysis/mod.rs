@@ -47,9 +47,9 @@ pub use compare::{
     Where,
 };
 pub use diagnose::{
-    diagnose, diagnose_without, BaselineSummary, Candidate, Diagnosis, Lead, FLOOR_MARGIN,
-    MIN_EXPLAINED, MIN_SCORE, MIN_SCORE_GAP, NAME_MARGIN, PAIR_CANDIDATES, REFINE_MARGIN,
-    SCREEN_RATIO,
+    check_registered, diagnose, diagnose_without, BaselineSummary, Candidate, Diagnosis, Lead,
+    FLOOR_MARGIN, MIN_EXPLAINED, MIN_SCORE, MIN_SCORE_GAP, NAME_MARGIN, PAIR_CANDIDATES,
+    REFINE_MARGIN, SCREEN_RATIO,
 };
 pub use fit::{
     fit_model, fit_model_from, scan_coordinates, screen_model, searched_starts, Fitted, Staged,
