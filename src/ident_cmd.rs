@@ -242,13 +242,54 @@ fn fmt_interval(lo: f64, hi: f64) -> String {
     }
 }
 
+/// A table knot's parameter name split at its argument's value
+/// (`stiffness_factor_rise@tension_n=151.09452775173452`: the name up to `=`, 151.09...).
+fn knot(name: &str) -> Option<(&str, f64)> {
+    let (head, arg) = name.rsplit_once('=')?;
+    let v: f64 = arg.parse().ok()?;
+    (head.contains('@') && v.is_finite()).then_some((head, v))
+}
+
+/// A parameter's name as the tables print it: a table knot's argument to 4
+/// significant digits (`stiffness_factor_rise@tension_n=151.1`). Model files and
+/// `--json` keep the knots exact.
+fn display_name(name: &str) -> String {
+    let Some((head, v)) = knot(name) else {
+        return name.to_string();
+    };
+    let digits = if v == 0.0 {
+        0
+    } else {
+        (3 - v.abs().log10().floor() as i32).max(0) as usize
+    };
+    format!("{head}={v:.digits$}")
+}
+
+/// The order the tables print parameters in: by name, a table's knots by the value of
+/// their argument (a total order: the name up to `=`, then the value).
+fn by_name_then_knot<'a, T>(
+    items: impl IntoIterator<Item = (&'a String, T)>,
+) -> Vec<(&'a String, T)> {
+    let mut v: Vec<(&'a String, T)> = items.into_iter().collect();
+    let key = |n: &str| {
+        knot(n).map_or((n.to_string(), f64::NEG_INFINITY), |(h, x)| {
+            (h.to_string(), x)
+        })
+    };
+    v.sort_by(|a, b| {
+        let (ka, kb) = (key(a.0), key(b.0));
+        ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
+    });
+    v
+}
+
 /// Table rows `(name, value, interval, std error, note)` of a fit's parameters.
 fn fit_rows(r: &longreach_ident::FitResult) -> Vec<[String; 5]> {
     (0..r.names.len())
         .map(|i| {
             let (lo, hi) = r.interval_95[i];
             [
-                r.names[i].clone(),
+                display_name(&r.names[i]),
                 fmt(r.values[i]),
                 fmt_interval(lo, hi),
                 fmt(r.std_errors[i]),
@@ -645,7 +686,7 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
             "note",
         ]);
         for c in &d.candidates {
-            for (name, v) in &c.params {
+            for (name, v) in by_name_then_knot(&c.params) {
                 let (interval, note) = match c.interval_95.get(name) {
                     Some(&[lo, hi]) => (
                         fmt_interval(lo, hi),
@@ -659,7 +700,7 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
                 };
                 t.add_row(vec![
                     c.effect.clone(),
-                    name.clone(),
+                    display_name(name),
                     fmt(*v),
                     interval,
                     note,
@@ -1057,12 +1098,13 @@ fn write_report(
                 )
             }));
         for (model, params, intervals, clipped) in models {
-            for (name, [lo, hi]) in intervals {
+            for (name, [lo, hi]) in by_name_then_knot(intervals) {
                 let flag = clipped
                     .get(name)
                     .map_or(String::new(), |c| format!(" ({})", Clipped::note_for(c)));
                 md.push_str(&format!(
-                    "| {model} | {name} | {} | {}{flag} |\n",
+                    "| {model} | {} | {} | {}{flag} |\n",
+                    display_name(name),
                     params.get(name).map_or("-".into(), |v| fmt(*v)),
                     fmt_interval(*lo, *hi)
                 ));
@@ -1369,4 +1411,54 @@ fn write_law_figure(dir: &Path, r: &analysis::ShapeRefinement, md: &mut String) 
         ));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn knot_names_print_to_four_digits_and_in_the_order_of_their_argument() {
+        let rise = |t: &str| format!("stiffness_factor_rise@tension_n={t}");
+        assert_eq!(
+            display_name(&rise("151.09452775173452")),
+            rise("151.1"),
+            "four significant digits"
+        );
+        assert_eq!(display_name(&rise("67.21311525054008")), rise("67.21"));
+        assert_eq!(display_name(&rise("1500.4")), rise("1500"));
+        assert_eq!(
+            display_name("stiffness_factor@tension_n=0"),
+            "stiffness_factor@tension_n=0"
+        );
+        // not knots: unchanged
+        for n in ["k1_scale", "coulomb_n_m@j1+j2", "delay_s[2]", "a=b"] {
+            assert_eq!(display_name(n), n);
+        }
+        let names: Vec<String> = [
+            rise("597.7379012266548"),
+            "k1_scale".into(),
+            rise("67.21311525054008"),
+            rise("151.09452775173452"),
+            "stiffening_per_n".into(),
+        ]
+        .into_iter()
+        .collect();
+        let map: BTreeMap<String, f64> = names.iter().map(|n| (n.clone(), 0.0)).collect();
+        let order: Vec<String> = by_name_then_knot(&map)
+            .into_iter()
+            .map(|(n, _)| display_name(n))
+            .collect();
+        // (by name, the string order put 597.7 before 67.21)
+        assert_eq!(
+            order,
+            [
+                "k1_scale".to_string(),
+                "stiffening_per_n".into(),
+                rise("67.21"),
+                rise("151.1"),
+                rise("597.7"),
+            ]
+        );
+    }
 }
