@@ -271,14 +271,10 @@ fn by_name_then_knot<'a, T>(
     items: impl IntoIterator<Item = (&'a String, T)>,
 ) -> Vec<(&'a String, T)> {
     let mut v: Vec<(&'a String, T)> = items.into_iter().collect();
-    let key = |n: &str| {
-        knot(n).map_or((n.to_string(), f64::NEG_INFINITY), |(h, x)| {
-            (h.to_string(), x)
-        })
-    };
+    let key = |n: &'a str| knot(n).unwrap_or((n, f64::NEG_INFINITY));
     v.sort_by(|a, b| {
         let (ka, kb) = (key(a.0), key(b.0));
-        ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
+        ka.0.cmp(kb.0).then(ka.1.total_cmp(&kb.1))
     });
     v
 }
