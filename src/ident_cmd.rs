@@ -82,6 +82,13 @@ pub struct DiagnoseArgs {
     /// it does not hold.
     #[arg(long, value_name = "EFFECT")]
     without: Vec<String>,
+    /// The exhaustive pair step: when the best single effect leaves the data above 1.5x
+    /// the noise floor, pair it with every other candidate (not only the best few and
+    /// one screened partner) and fit every pair from each of its starts. Slower; for a
+    /// diagnosis that ends with a lead a second effect may explain (docs/models.md,
+    /// "Decision rule").
+    #[arg(long)]
+    all_pairs: bool,
     #[command(flatten)]
     rerun: RerunArgs,
 }
@@ -595,7 +602,11 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
             return Err(e);
         }
     };
-    let (d, base, winner) = match analysis::diagnose_without(&prep, &model, &without) {
+    let options = analysis::DiagnoseOptions {
+        without: &without,
+        all_pairs: a.all_pairs,
+    };
+    let (d, base, winner) = match analysis::diagnose_with(&prep, &model, &options) {
         Ok(r) => r,
         Err(e) => {
             rec.discard();

@@ -21,10 +21,21 @@
 //! `=without` runs one of the two.
 
 use longreach_drive::effects::{self, DataKind, Effect, REGISTRY};
-use longreach_ident::analysis::{diagnose, diagnose_without, Prepared};
+use longreach_ident::analysis::{diagnose_with, DiagnoseOptions, Diagnosis, Fitted, Prepared};
 use longreach_ident::model::Model;
 use longreach_ident::synth::{self, RelaxationOptions, SweepOptions};
 use longreach_ident::{Dataset, DatasetKind, RelaxationDataset, RelaxationSpecimen};
+
+/// The diagnosis the studies run: `diagnose_without(without)`, with the exhaustive pair
+/// step when `CONFUSION_ALL_PAIRS=1` (`diagnose --all-pairs`).
+fn diagnose_as_set(
+    prep: &Prepared<'_>,
+    base: &Model,
+    without: &[&str],
+) -> (Diagnosis, Fitted, Option<Fitted>) {
+    let all_pairs = std::env::var("CONFUSION_ALL_PAIRS").is_ok_and(|v| v == "1");
+    diagnose_with(prep, base, &DiagnoseOptions { without, all_pairs }).unwrap()
+}
 
 /// The comma-separated names of the environment variable `var` (a study's filter;
 /// empty: no filter).
@@ -152,7 +163,7 @@ fn run_case(
         }
     }
     let t0 = std::time::Instant::now();
-    let (d, base_fit, _) = diagnose_without(&prep, &base, without).unwrap();
+    let (d, base_fit, _) = diagnose_as_set(&prep, &base, without);
     println!(
         "{kind:?} {rope} hidden={:?} seed={seed} tensions={} without={without:?} -> missing={:?} ranking={:?} ({:.1} s)",
         hidden.map(|h| (h.0.name(), h.1.to_vec())),
@@ -318,7 +329,7 @@ fn confusion_matrix_full() {
 /// Held-out study: the catalog without the effect in the data. For every registered
 /// effect of the rig's and the specimen's data, a dataset is made with it hidden (its
 /// stronger setting, both ropes, sweeps with their tension channels) and diagnosed with
-/// that effect left out of the candidates ([`diagnose_without`]): the data hold an
+/// that effect left out of the candidates (`diagnose_without`): the data hold an
 /// effect outside the catalog the diagnosis has, as data from another simulator or a
 /// real rig may. Every name it gives is then a false name; the right answer is none
 /// found, with a lead and its signatures. Prints a row per dataset (the baseline's and
@@ -440,7 +451,7 @@ fn diagnose_truth(
         }
     }
     let t0 = std::time::Instant::now();
-    let (d, base_fit, winner) = diagnose(&prep, &base).unwrap();
+    let (d, base_fit, winner) = diagnose_as_set(&prep, &base, &[]);
     let floor = base_fit.noise_floor;
     let out = Outcome {
         top2: d

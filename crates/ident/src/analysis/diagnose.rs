@@ -8,9 +8,9 @@ use serde::Serialize;
 use super::fit::fit_simulated;
 use super::{
     arm_dataset, compare, compare_arm, describe, describe_findings, fit_model, fit_model_from,
-    refine_shape, scan_coordinates, screen_model, searched_starts, signatures, simulate_arm,
-    split_per_joint, ArmFinding, Comparison, Fitted, JointSplit, Prepared, RunResonance,
-    ShapeRefinement, Signature, Staged, Start, Where, SCREEN_JACOBIANS,
+    fit_model_from_starts, refine_shape, scan_coordinates, screen_model, searched_starts,
+    signatures, simulate_arm, split_per_joint, ArmFinding, Comparison, Fitted, JointSplit,
+    Prepared, RunResonance, ShapeRefinement, Signature, Staged, Start, Where, SCREEN_JACOBIANS,
 };
 use crate::error::IdentError;
 use crate::model::Model;
@@ -897,6 +897,7 @@ fn pair_step(
     judge: &Judge,
     cands: &[(Candidate, Option<Fitted>)],
     parametric: &[(Candidate, Option<Fitted>)],
+    all_pairs: bool,
 ) -> Vec<(Candidate, Option<Fitted>)> {
     let search = coarse.unwrap_or(prep);
     let catalog = |c: &Candidate| catalog_fit(parametric, &c.effect);
@@ -925,32 +926,40 @@ fn pair_step(
             .filter(|(c, f)| f.is_some() && !tops.iter().any(|t| same_effect(t, c)))
             .filter_map(|(c, _)| catalog(c))
             .collect();
-        let screened: Vec<f64> = others
-            .par_iter()
-            .map(|o| {
-                let Some(eo) = o.model.effects.last() else {
-                    return f64::INFINITY;
-                };
-                let mut m = first.model.clone();
-                m.effects.push(eo.clone());
-                search
-                    .simulate(&m)
-                    .map_or(f64::INFINITY, |sims| search.ssr(&sims))
-            })
-            .collect();
-        // (the single's own SSR is `prep`'s: simulated again only on a coarse twin)
-        let first_ssr = match coarse {
-            None => first.ssr,
-            Some(c) => c
-                .simulate(&first.model)
-                .map_or(f64::INFINITY, |sims| c.ssr(&sims)),
-        };
-        if let Some(k) = (0..others.len())
-            .filter(|&k| screened[k] < first_ssr)
-            .min_by(|&a, &b| screened[a].total_cmp(&screened[b]).then(a.cmp(&b)))
-        {
-            tops.push(others[k]);
-            combos.push((0, tops.len() - 1));
+        if all_pairs {
+            // (the exhaustive step: every other candidate is the best single's partner)
+            for o in others {
+                tops.push(o);
+                combos.push((0, tops.len() - 1));
+            }
+        } else {
+            let screened: Vec<f64> = others
+                .par_iter()
+                .map(|o| {
+                    let Some(eo) = o.model.effects.last() else {
+                        return f64::INFINITY;
+                    };
+                    let mut m = first.model.clone();
+                    m.effects.push(eo.clone());
+                    search
+                        .simulate(&m)
+                        .map_or(f64::INFINITY, |sims| search.ssr(&sims))
+                })
+                .collect();
+            // (the single's own SSR is `prep`'s: simulated again only on a coarse twin)
+            let first_ssr = match coarse {
+                None => first.ssr,
+                Some(c) => c
+                    .simulate(&first.model)
+                    .map_or(f64::INFINITY, |sims| c.ssr(&sims)),
+            };
+            if let Some(k) = (0..others.len())
+                .filter(|&k| screened[k] < first_ssr)
+                .min_by(|&a, &b| screened[a].total_cmp(&screened[b]).then(a.cmp(&b)))
+            {
+                tops.push(others[k]);
+                combos.push((0, tops.len() - 1));
+            }
         }
     }
     let fits: Vec<(String, Result<Fitted, IdentError>)> = combos
@@ -995,13 +1004,27 @@ fn pair_step(
                         .map_or(f64::INFINITY, |sims| search.ssr(&sims))
                 })
                 .collect();
-            let best = (0..starts.len())
-                .min_by(|&i, &j| ssr[i].total_cmp(&ssr[j]).then(i.cmp(&j)))
-                .unwrap_or(0);
+            let mut order: Vec<usize> = (0..starts.len()).collect();
+            order.sort_by(|&i, &j| ssr[i].total_cmp(&ssr[j]).then(i.cmp(&j)));
+            let best = order[0];
             // then improved a coordinate at a time on the simulation
             let start =
                 scan_coordinates(search, &starts[best]).unwrap_or_else(|_| starts[best].clone());
-            (name, fit_model_from(search, &start, Start::Own))
+            if all_pairs {
+                // (and in the exhaustive step fitted from every other start as well, in
+                // the order of their squared error: a start's squared error need not
+                // tell its basin)
+                let mut from = vec![start.clone()];
+                from.extend(
+                    order[1..]
+                        .iter()
+                        .filter(|&&i| ssr[i].is_finite())
+                        .map(|&i| starts[i].clone()),
+                );
+                (name, fit_model_from_starts(search, &start, &from))
+            } else {
+                (name, fit_model_from(search, &start, Start::Own))
+            }
         })
         .collect();
     // (scored at the chosen step; finished there by `finish_pairs` when they matter)
@@ -1238,6 +1261,39 @@ pub fn diagnose_without(
     model: &Model,
     without: &[&str],
 ) -> Result<(Diagnosis, Fitted, Option<Fitted>), IdentError> {
+    diagnose_with(
+        prep,
+        model,
+        &DiagnoseOptions {
+            without,
+            all_pairs: false,
+        },
+    )
+}
+
+/// How [`diagnose_with`] searches beyond [`diagnose`]'s defaults.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct DiagnoseOptions<'a> {
+    /// Registered effects left out of the candidates ([`diagnose_without`]).
+    pub without: &'a [&'a str],
+    /// The exhaustive pair step: when the pair step runs, the best single candidate is
+    /// paired with every other candidate (not only the best few and the one screened
+    /// partner), and every pair is fitted from each of its starts (not only from the one
+    /// that simulates closest to the data). The decision rule is the same. Slower; for a
+    /// diagnosis that ends with a lead a second effect may explain: a second effect
+    /// whose single fit made up for the first's absence ranks low alone, and a pair's
+    /// start closest to the data may lie in another basin than its optimum (a
+    /// stiffening rope with internal damping on vectran2, docs/models.md).
+    pub all_pairs: bool,
+}
+
+/// [`diagnose`] with [`DiagnoseOptions`].
+pub fn diagnose_with(
+    prep: &Prepared<'_>,
+    model: &Model,
+    options: &DiagnoseOptions<'_>,
+) -> Result<(Diagnosis, Fitted, Option<Fitted>), IdentError> {
+    let without = options.without;
     check_registered(without)?;
     // (an arm's searches at its coarse step, finished at the chosen one: `finish`)
     let coarse = prep.coarse_twin()?;
@@ -1439,6 +1495,7 @@ pub fn diagnose_without(
                     &judge,
                     &cands,
                     &parametric,
+                    options.all_pairs,
                 );
             }
         }
@@ -1526,6 +1583,8 @@ pub fn diagnose_without(
     };
     // The decisive pair, else the decisive single, with the effects it adds: named
     // when its model reaches the name margin, else the lead.
+    // (a lead left by the default pair step says what the exhaustive one would try)
+    let pairs_tried = !pairs.is_empty() && !options.all_pairs;
     let decided = if pair_decisive {
         pairs.first_mut().and_then(|(c, f)| {
             let f = f.as_ref()?;
@@ -1561,6 +1620,11 @@ pub fn diagnose_without(
                     100.0 * c.explained.clamp(0.0, 1.0),
                     l.ratio_to_floor,
                     significant(v),
+                );
+            }
+            if pairs_tried {
+                l.why.push_str(
+                    " Pairs were tried with the best few single candidates and one screened partner, each from its start closest to the data: a second effect that the first's error masks may not have been paired with it, or a pair's optimum not reached from there. The exhaustive pair step (`diagnose --all-pairs`) pairs the best single with every candidate, each pair from each of its starts (slower).",
                 );
             }
             lead = Some(l);

@@ -702,6 +702,28 @@ pub fn fit_model_from(
     fit_simulated(prep, model, start, None)
 }
 
+/// Fits the free parameters of `model` from each of `starts` (models of its structure,
+/// with the same free parameters), in that order, and keeps the best fit: a start
+/// whose least squares joins the basin of one fitted before stops there, and a start
+/// equal to one fitted before is skipped ([`fit_once`]). For a fit whose starts'
+/// squared errors do not tell which basin each is in: the exhaustive pair step of
+/// [`diagnose_with`](fn@super::diagnose_with) (on a sweep holding a stiffening rope and
+/// internal damping, the pair's own search start simulated farther from the data than
+/// either single fit's, and only its least squares reached the floor).
+pub fn fit_model_from_starts(
+    prep: &Prepared<'_>,
+    model: &Model,
+    starts: &[Model],
+) -> Result<Fitted, IdentError> {
+    let n_runs = prep.runs.len();
+    let xs: Vec<Vec<f64>> = starts
+        .iter()
+        .map(|m| m.fit_specs(n_runs).iter().map(|s| s.initial).collect())
+        .collect();
+    let first = fit_once(&SimCache::new(prep, model), Start::Search, None, Some(xs))?;
+    or_from_defaults(prep, first)
+}
+
 /// [`fit_model_from`] where `model` was already simulated on `prep` (`sims`, as
 /// [`Prepared::simulate`] returns them): the fit starts from those instead of
 /// simulating it again.
