@@ -26,6 +26,25 @@ fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
+/// `diagnose DS EXTRA.. --json DIR/d.json --write-model DIR/m.toml`, which must succeed:
+/// its output (printed), its JSON and the written model's path.
+fn diagnose_writing(ds: &Path, dir: &Path, extra: &[&str]) -> (String, serde_json::Value, PathBuf) {
+    let dj = dir.join("d.json");
+    let m = dir.join("m.toml");
+    let mut args = vec!["diagnose", ds.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    args.extend([
+        "--json",
+        dj.to_str().unwrap(),
+        "--write-model",
+        m.to_str().unwrap(),
+    ]);
+    let (ok, out, err) = longreach(&args);
+    assert!(ok, "{err}");
+    println!("{out}");
+    (out, json(&dj), m)
+}
+
 /// `synth` of a relaxation holding a second retardation time (1.5e5 N, 3e6 N*s), seed
 /// 5, into `dir/relax_kelvin`.
 fn synth_relax_kelvin(dir: &Path) -> PathBuf {
@@ -275,20 +294,7 @@ fn all_pairs_names_a_stiffening_with_internal_damping() {
         ds.to_str().unwrap(),
     ]);
     assert!(ok, "{err}");
-    let dj = dir.path().join("d.json");
-    let m = dir.path().join("m.toml");
-    let (ok, out, err) = longreach(&[
-        "diagnose",
-        ds.to_str().unwrap(),
-        "--all-pairs",
-        "--json",
-        dj.to_str().unwrap(),
-        "--write-model",
-        m.to_str().unwrap(),
-    ]);
-    assert!(ok, "{err}");
-    println!("{out}");
-    let d = json(&dj);
+    let (out, d, m) = diagnose_writing(&ds, dir.path(), &["--all-pairs"]);
     let mut named: Vec<&str> = d["missing_effects"]
         .as_array()
         .unwrap()
@@ -323,20 +329,8 @@ fn all_pairs_names_a_stiffening_with_internal_damping() {
 #[ignore]
 fn stiffening_example_names_the_effect_and_error_falls_3x() {
     let dir = tempfile::tempdir().unwrap();
-    let dj = dir.path().join("d.json");
-    let m = dir.path().join("m.toml");
     let ds = example("example_sweep_stiffening");
-    let (ok, out, err) = longreach(&[
-        "diagnose",
-        ds.to_str().unwrap(),
-        "--json",
-        dj.to_str().unwrap(),
-        "--write-model",
-        m.to_str().unwrap(),
-    ]);
-    assert!(ok, "{err}");
-    println!("{out}");
-    let d = json(&dj);
+    let (_, d, m) = diagnose_writing(&ds, dir.path(), &[]);
     assert_eq!(d["missing_effect"], "nonlinear_stiffness");
     let base = d["baseline"]["nrmse"].as_f64().unwrap();
     let cj = dir.path().join("c.json");
