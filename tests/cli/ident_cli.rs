@@ -271,7 +271,7 @@ fn output_into_a_missing_folder_is_refused_before_the_work() {
 /// study's pair with its tension channels (seed 4010). The default diagnosis ends with
 /// the lead `nonlinear_stiffness` + `joint_friction` at 3.71x the floor and says what
 /// the exhaustive step would try; with it both effects are named within 1.5x the floor
-/// and their values come back (9 min on the slower AMD type; docs/models.md, "Decision
+/// and their values come back (4.6 min on the slower AMD type; docs/models.md, "Decision
 /// rule"): `cargo test --release --test cli -- --ignored --nocapture all_pairs`.
 #[test]
 #[ignore]
