@@ -1078,16 +1078,23 @@ fn write_report(
         }
         if !d.signatures.is_empty() {
             md.push_str(
-                "\n### Residual signatures (what the baseline still misses)\n\n| signature | simplest term | size | removes of the excess |\n|---|---|---|---|\n",
+                "\n### Residual signatures (what the baseline still misses)\n\n| signature | simplest term | size | removes of the excess | details |\n|---|---|---|---|---|\n",
             );
             for g in &d.signatures {
+                let details: Vec<String> = g
+                    .equivalent
+                    .iter()
+                    .map(|e| format!("{} = {} {}", e.what, fmt(e.value), e.unit))
+                    .chain((!g.note.is_empty()).then(|| g.note.clone()))
+                    .collect();
                 md.push_str(&format!(
-                    "| {} | {} | {} {} | {:.0}% |\n",
+                    "| {} | {} | {} {} | {:.0}% | {} |\n",
                     g.evidence,
                     g.term,
                     fmt(g.size),
-                    g.unit,
-                    100.0 * g.share_removed
+                    if g.unit == "1" { "" } else { g.unit },
+                    100.0 * g.share_removed,
+                    details.join("; ")
                 ));
             }
         }

@@ -381,7 +381,7 @@ pub fn compare(
 }
 
 /// Unit of a channel, from its column name.
-fn unit_of(name: &str) -> &'static str {
+pub(super) fn unit_of(name: &str) -> &'static str {
     if name.ends_with("_rad") {
         "rad"
     } else if name.ends_with("_n") {

@@ -15,6 +15,13 @@
 //! | error depends on the amplitude | a damping per run; dry friction by the describing function `C_eq = C_v + 4 F / (pi V)` | `F` [N*m] |
 //! | drift over time | a term linear in time (common slope, each run's offset) | slope [channel unit / s] |
 //! | a periodic component the test does not drive (residual not white) | a sinusoid at the residual's dominant frequency (each run its amplitude and phase) | amplitude [channel unit], its frequency in `equivalent` |
+//! | a channel's residual follows the channel itself | a calibration of every measured channel, `measured = g model + c` (per channel, common to the runs: a sensor's gain and zero) | the largest gain error `g - 1` [1], its channel's offset `c` in `equivalent` |
+//!
+//! Every share is of the excess over every stacked channel (a sweep's tensions with its
+//! angle, each weighted by its noise as in the fits): a term on the output angle is
+//! measured against all the error there is to explain (a load cell's gain error leaves
+//! the angle at its floor, where a share of the angle's own excess, a few percent of
+//! the floor's SSR, was 70% of nothing).
 //!
 //! See `docs/models.md`, "Residual signatures".
 
@@ -51,6 +58,9 @@ pub enum SignatureKind {
     /// The residual holds a periodic component at a frequency the test does not drive
     /// (a disturbance, a mode the model lacks).
     Periodic,
+    /// The residual of a measured channel follows the channel itself: the measurement
+    /// is the model's scaled and offset (a sensor's gain or zero, a radius ratio).
+    Calibration,
 }
 
 /// The same term's size in another quantity (e.g. a dry torque as the angle offset it
@@ -86,7 +96,7 @@ pub struct Signature {
     pub equivalent: Option<Equivalent>,
     /// Share of the baseline's excess squared error above the noise floor,
     /// `(SSR - SSR_with_term) / (SSR - SSR_floor)`, that the term removes (0 when the
-    /// baseline has no excess).
+    /// baseline has no excess); over every stacked channel (module docs).
     pub share_removed: f64,
     /// The same reduction of the SSR over the floor's SSR (meaningful at the floor too).
     pub removed_over_floor: f64,
@@ -121,7 +131,7 @@ impl Signature {
 /// The explanation's "Residual signature: ..." sentence.
 pub fn describe(signatures: &[Signature]) -> String {
     if signatures.is_empty() {
-        "Residual signature: none of the known patterns (phase error growing with frequency, the velocity's sign, harmonics, tension or amplitude dependence, drift, a periodic component).".into()
+        "Residual signature: none of the known patterns (phase error growing with frequency, the velocity's sign, harmonics, tension or amplitude dependence, drift, a periodic component, a channel's calibration).".into()
     } else {
         let parts: Vec<String> = signatures.iter().map(Signature::sentence).collect();
         format!("Residual signature: {}.", parts.join("; "))
@@ -155,6 +165,11 @@ struct Base<'p, 'a> {
     ssr: f64,
     /// The noise floor's SSR.
     ssr_floor: f64,
+    /// The excess the shares are of: over every stacked channel when the simulation
+    /// holds them (a sweep's tensions with its angle: a term on the angle is measured
+    /// against all the error there is to explain, and a share of an angle already at
+    /// its floor is not a share of anything), else the primary channel's.
+    excess: f64,
 }
 
 impl Base<'_, '_> {
@@ -170,7 +185,7 @@ impl Base<'_, '_> {
     /// `(share_removed, removed_over_floor)` of a term that leaves `ssr_after`.
     fn shares(&self, ssr_after: f64) -> (f64, f64) {
         let removed = self.ssr - ssr_after;
-        let excess = self.ssr - self.ssr_floor;
+        let excess = self.excess;
         (
             if excess > 0.0 { removed / excess } else { 0.0 },
             removed / self.ssr_floor.max(f64::MIN_POSITIVE),
@@ -443,10 +458,21 @@ pub fn signatures(
         sims,
         ssr: 0.0,
         ssr_floor,
+        excess: 0.0,
     };
     base.ssr = (0..prep.runs.len())
         .map(|r| base.ssr_run(r, &sims[r]))
         .sum();
+    let stacked = prep
+        .runs
+        .iter()
+        .zip(sims)
+        .all(|(run, y)| y.len() >= run.n_channels() * run.measured.len());
+    base.excess = if stacked {
+        prep.ssr(sims) - prep.floor_ssr()
+    } else {
+        base.ssr - ssr_floor
+    };
     let b = &base;
     let r = &cmp.residual;
     let mut out = Vec::new();
@@ -544,6 +570,11 @@ pub fn signatures(
                     Ok(t),
                 ));
             }
+        }
+    }
+    if prep.kind != DataKind::ArmMoves {
+        if let Some(sig) = calibration(prep, sims) {
+            out.push(sig);
         }
     }
     if let Some((lo, hi)) = amplitude_contrast(cmp) {
@@ -933,6 +964,127 @@ fn drift(b: &Base<'_, '_>) -> Term {
         equivalent: None,
         ssr_after,
     }
+}
+
+/// Least share of the stacked excess error a calibration of the channels must remove to
+/// be reported ([`calibration`]).
+const CALIBRATION_MIN_SHARE: f64 = 0.2;
+
+/// A calibration of every measured channel: the model's channel `y` mapped to
+/// `g y + c`, with `g` and `c` per channel and common to the runs (one sensor, one
+/// calibration), by linear least squares over the analysed samples (separable: a
+/// channel's correction changes only its own residuals). Its share is of the stacked
+/// excess, every channel weighted as in the fits (its noise over the primary's);
+/// reported when it removes at least [`CALIBRATION_MIN_SHARE`] of it. A miscalibrated
+/// load cell (a 5% gain on a sweep's tensions: 13.8x the floor, no other signature
+/// removing any of it) or encoder (3% on the output angle) is otherwise a failure no
+/// term accounts for, and the baseline's fitted stiffness may lean on it. The term is
+/// the largest gain error, of the channel whose calibration removes most.
+fn calibration(prep: &Prepared<'_>, sims: &[Vec<f64>]) -> Option<Signature> {
+    let n_channels = prep.runs.iter().map(RunData::n_channels).max()?;
+    let primary = super::prepare::primary_name(&prep.ds.kind);
+    // per channel: (name, weight^2-scaled SSR before, after, g, c, residual-model
+    // correlation)
+    let mut per: Vec<(&'static str, f64, f64, f64, f64, f64)> = Vec::new();
+    for k in 0..n_channels {
+        // the channel's samples over the runs that stack it: (model, measured, w^2)
+        let (mut n, mut sy, mut sm) = (0.0, 0.0, 0.0);
+        let mut name = primary;
+        let samples = || {
+            prep.runs.iter().zip(sims).filter_map(move |(run, y)| {
+                let len = run.measured.len();
+                (k < run.n_channels() && y.len() >= (k + 1) * len)
+                    .then(|| (run, &y[k * len..(k + 1) * len], run.channel_values(k)))
+            })
+        };
+        for (run, y, m) in samples() {
+            name = run.channel_name(k, primary);
+            for &i in &run.idx {
+                n += 1.0;
+                sy += y[i];
+                sm += m[i];
+            }
+        }
+        if n < 3.0 {
+            continue;
+        }
+        let (ym, mm) = (sy / n, sm / n);
+        let (mut syy, mut sym, mut see, mut sey) = (0.0, 0.0, 0.0, 0.0);
+        for (run, y, m) in samples() {
+            for &i in &run.idx {
+                let (dy, dm) = (y[i] - ym, m[i] - mm);
+                syy += dy * dy;
+                sym += dy * dm;
+                let de = y[i] - m[i] - (ym - mm);
+                see += de * de;
+                sey += de * dy;
+            }
+        }
+        let g = if syy > 0.0 { sym / syy } else { 1.0 };
+        let c = mm - g * ym;
+        // (weighted as the fits weigh the channel in each run)
+        let (mut before, mut after) = (0.0, 0.0);
+        for (run, y, m) in samples() {
+            let w2 = run.weight(k).powi(2);
+            for &i in &run.idx {
+                before += w2 * (y[i] - m[i]).powi(2);
+                after += w2 * (g * y[i] + c - m[i]).powi(2);
+            }
+        }
+        let corr = if see > 0.0 && syy > 0.0 {
+            sey / (see * syy).sqrt()
+        } else {
+            0.0
+        };
+        per.push((name, before, after.min(before), g, c, corr));
+    }
+    let ssr = prep.ssr(sims);
+    let excess = ssr - prep.floor_ssr();
+    let removed: f64 = per.iter().map(|p| p.1 - p.2).sum();
+    if !(excess > 0.0 && removed >= CALIBRATION_MIN_SHARE * excess) {
+        return None;
+    }
+    let best = per
+        .iter()
+        .max_by(|a, b| (a.1 - a.2).total_cmp(&(b.1 - b.2)))?;
+    let unit = super::compare::unit_of(best.0);
+    let listed: Vec<String> = per
+        .iter()
+        .filter(|p| p.1 - p.2 >= 0.01 * removed)
+        .map(|p| {
+            format!(
+                "{}: g {:.4}, c {}, {:.0}%",
+                p.0,
+                p.3,
+                quantity(p.4, super::compare::unit_of(p.0)),
+                100.0 * (p.1 - p.2) / excess
+            )
+        })
+        .collect();
+    Some(Signature {
+        kind: SignatureKind::Calibration,
+        evidence: format!(
+            "the residual of {} follows that channel itself (correlation {:.2} with the model's channel)",
+            best.0, best.5
+        ),
+        term: format!(
+            "a calibration of every measured channel, measured = g model + c (per channel, common to the runs); the gain error of {}, g - 1",
+            best.0
+        ),
+        note: format!(
+            "a sensor's gain or zero, or a radius ratio; of the excess over every channel, by channel: {}",
+            listed.join("; ")
+        ),
+        size: best.3 - 1.0,
+        unit: "1",
+        equivalent: Some(Equivalent {
+            what: "its offset c",
+            value: best.4,
+            unit,
+        }),
+        share_removed: removed / excess,
+        removed_over_floor: removed / prep.floor_ssr().max(f64::MIN_POSITIVE),
+    })
 }
 
 /// Least share of the excess error a periodic component must remove to be reported.
