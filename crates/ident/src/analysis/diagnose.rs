@@ -1764,6 +1764,18 @@ fn explain(
         "The baseline misses the data: NRMSE {:.4} is {:.1}x the noise floor {:.4}. ",
         base.nrmse, ratio, base.noise_floor
     ));
+    let by_channel = excess_by_channel(prep, &base.sims);
+    if by_channel.len() > 1 {
+        let parts: Vec<String> = by_channel
+            .iter()
+            .filter(|(_, x)| *x >= 0.01)
+            .map(|(name, x)| format!("{name} {:.0}%", 100.0 * x))
+            .collect();
+        s.push_str(&format!(
+            "By channel, the excess over the floor is in {}. ",
+            parts.join(", ")
+        ));
+    }
     if let Some(w) = cmp.where_.first() {
         match w.frequency_hz {
             Some(f) => s.push_str(&format!(
@@ -1984,6 +1996,54 @@ fn significant(x: f64) -> String {
 }
 
 /// One sentence on a shape-free refinement.
+/// The share of the stacked excess over the floor (each channel weighted by its noise,
+/// as in the fits; a channel below its floor counts 0) that each measured channel
+/// holds, over every run, largest first; empty for an arm (its channels are compared in
+/// the arm's own terms) or when nothing is above the floor. A load cell reading 5% high
+/// leaves the angle at its floor: which channel misses is the first thing to know.
+pub fn excess_by_channel(prep: &Prepared<'_>, sims: &[Vec<f64>]) -> Vec<(&'static str, f64)> {
+    if prep.kind == DataKind::ArmMoves {
+        return Vec::new();
+    }
+    let primary = super::prepare::primary_name(&prep.ds.kind);
+    let mut out: Vec<(&'static str, f64)> = Vec::new();
+    for (run, y) in prep.runs.iter().zip(sims) {
+        let len = run.measured.len();
+        for k in 0..run.n_channels() {
+            let Some(yk) = y.get(k * len..(k + 1) * len) else {
+                continue;
+            };
+            let (w2, m) = (run.weight(k).powi(2), run.channel_values(k));
+            let ssr: f64 = run.idx.iter().map(|&i| w2 * (yk[i] - m[i]).powi(2)).sum();
+            let excess = ssr - run.noise_sigma.powi(2) * run.idx.len() as f64;
+            let name = run.channel_name(k, primary);
+            match out.iter_mut().find(|(n, _)| *n == name) {
+                Some(slot) => slot.1 += excess,
+                None => out.push((name, excess)),
+            }
+        }
+    }
+    out.iter_mut().for_each(|c| c.1 = c.1.max(0.0));
+    let total: f64 = out.iter().map(|c| c.1).sum();
+    if total <= 0.0 {
+        return Vec::new();
+    }
+    out.iter_mut().for_each(|c| c.1 /= total);
+    out.sort_by(|a, b| b.1.total_cmp(&a.1));
+    out
+}
+
+/// A table's value in the explanation: three decimals from 0.1 up (a stiffness factor
+/// near 1 keeps its 1.001), three significant digits below (a relay's friction
+/// coefficient of 3e-4 read "0.000" at every knot).
+fn table_value(y: f64) -> String {
+    if y.abs() >= 0.1 {
+        format!("{y:.3}")
+    } else {
+        significant(y)
+    }
+}
+
 fn describe_refinement(r: &ShapeRefinement) -> String {
     let k = r.knots.len().saturating_sub(1);
     let points: Vec<String> = r
@@ -1992,7 +2052,14 @@ fn describe_refinement(r: &ShapeRefinement) -> String {
         .zip(&r.values)
         .zip(&r.catalog)
         .skip(1)
-        .map(|((x, y), c)| format!("{y:.3} at {} (catalog law {c:.3})", significant(*x)))
+        .map(|((x, y), c)| {
+            format!(
+                "{} at {} (catalog law {})",
+                table_value(*y),
+                significant(*x),
+                table_value(*c)
+            )
+        })
         .collect();
     if r.kept {
         format!(
@@ -2023,7 +2090,7 @@ fn describe_refinement(r: &ShapeRefinement) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::significant;
+    use super::{significant, table_value};
 
     #[test]
     fn knots_are_written_to_three_significant_digits() {
@@ -2032,5 +2099,16 @@ mod tests {
         assert_eq!(significant(1.234_56), "1.23");
         assert_eq!(significant(0.0), "0");
         assert_eq!(significant(2.5e-5), "2.50e-5");
+    }
+
+    #[test]
+    fn small_table_values_keep_three_significant_digits() {
+        // a relay's friction coefficient, once "0.000" at every knot
+        assert_eq!(table_value(3.14e-4), "3.14e-4");
+        assert_eq!(table_value(0.0123), "0.0123");
+        // a stiffness factor keeps its three decimals
+        assert_eq!(table_value(1.0014), "1.001");
+        assert_eq!(table_value(0.5), "0.500");
+        assert_eq!(table_value(0.0), "0");
     }
 }

@@ -47,9 +47,9 @@ pub use compare::{
     Where,
 };
 pub use diagnose::{
-    check_registered, diagnose, diagnose_with, diagnose_without, BaselineSummary, Candidate,
-    DiagnoseOptions, Diagnosis, Lead, FLOOR_MARGIN, MIN_EXPLAINED, MIN_SCORE, MIN_SCORE_GAP,
-    NAME_MARGIN, PAIR_CANDIDATES, REFINE_MARGIN, SCREEN_RATIO,
+    check_registered, diagnose, diagnose_with, diagnose_without, excess_by_channel,
+    BaselineSummary, Candidate, DiagnoseOptions, Diagnosis, Lead, FLOOR_MARGIN, MIN_EXPLAINED,
+    MIN_SCORE, MIN_SCORE_GAP, NAME_MARGIN, PAIR_CANDIDATES, REFINE_MARGIN, SCREEN_RATIO,
 };
 pub use fit::{
     fit_model, fit_model_from, fit_model_from_starts, scan_coordinates, screen_model,

@@ -22,10 +22,9 @@ pub(crate) fn base() -> Model {
     base
 }
 
-/// A three-run dyneema2 sweep (147 N at 4.5 and 1.5 deg, 294 N at 3 deg) with `name`
-/// hidden at `values`, written to a temporary folder and read back.
-pub(crate) fn hidden_sweep(name: &str, values: &[f64], seed: u64) -> Dataset {
-    let e = effects::find(name).unwrap();
+/// The options of a three-run dyneema2 sweep (147 N at 4.5 and 1.5 deg, 294 N at 3
+/// deg; 11 frequencies 0.5-6 Hz, 2 s settle and hold).
+pub(crate) fn three_runs(seed: u64) -> SweepOptions {
     let mut opt = SweepOptions::paper("dyneema2", seed);
     opt.runs = vec![
         (147.0, 4.5f64.to_radians()),
@@ -35,6 +34,14 @@ pub(crate) fn hidden_sweep(name: &str, values: &[f64], seed: u64) -> Dataset {
     opt.frequencies_hz = vec![0.5, 1.0, 1.5, 1.8, 2.1, 2.4, 2.7, 3.0, 3.5, 4.5, 6.0];
     opt.settle_s = 2.0;
     opt.min_hold_s = 2.0;
+    opt
+}
+
+/// A three-run dyneema2 sweep ([`three_runs`]) with `name`
+/// hidden at `values`, written to a temporary folder and read back.
+pub(crate) fn hidden_sweep(name: &str, values: &[f64], seed: u64) -> Dataset {
+    let e = effects::find(name).unwrap();
+    let opt = three_runs(seed);
     let mut truth = base().with_effect(e);
     for (p, v) in truth.effects[0].params.iter_mut().zip(values) {
         p.value = *v;

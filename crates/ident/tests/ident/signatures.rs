@@ -6,14 +6,15 @@
 
 use longreach_drive::effects;
 use longreach_ident::analysis::{
-    compare, describe, diagnose, fit_model, signatures, Prepared, Signature, SignatureKind,
+    compare, describe, diagnose, excess_by_channel, fit_model, signatures, Prepared, Signature,
+    SignatureKind,
 };
 use longreach_ident::dataset::DatasetKind;
 use longreach_ident::model::Model;
-use longreach_ident::synth::{self, SweepOptions};
+use longreach_ident::synth;
 use longreach_ident::Dataset;
 
-use super::new_effects::{base, hidden_sweep};
+use super::new_effects::{base, hidden_sweep, three_runs};
 
 fn example(name: &str) -> Dataset {
     Dataset::load(
@@ -26,8 +27,17 @@ fn example(name: &str) -> Dataset {
 
 /// `model` fitted to `ds` and its signatures.
 fn baseline_signatures(ds: &Dataset, model: &Model) -> Vec<Signature> {
+    baseline_signatures_and_channels(ds, model).0
+}
+
+/// [`baseline_signatures`], and the share of the excess each channel holds.
+fn baseline_signatures_and_channels(
+    ds: &Dataset,
+    model: &Model,
+) -> (Vec<Signature>, Vec<(&'static str, f64)>) {
     let prep = Prepared::new(ds).unwrap();
     let fitted = fit_model(&prep, model).unwrap();
+    let by_channel = excess_by_channel(&prep, &fitted.sims);
     let cmp = compare(&prep, &fitted.model, &fitted.sims).unwrap();
     let t = std::time::Instant::now();
     let sigs = signatures(&prep, &fitted.model, &fitted.sims, &cmp);
@@ -39,7 +49,7 @@ fn baseline_signatures(ds: &Dataset, model: &Model) -> Vec<Signature> {
         t.elapsed().as_secs_f64(),
         describe(&sigs)
     );
-    sigs
+    (sigs, by_channel)
 }
 
 fn find(sigs: &[Signature], kind: SignatureKind) -> &Signature {
@@ -121,19 +131,11 @@ fn a_tension_dependent_stiffness_is_quantified_per_run() {
     assert!(s.share_removed > 0.4, "{s:?}");
 }
 
-/// A control sweep of the test baseline (three runs at 147 and 294 N, with tensions)
+/// A control sweep of the test baseline ([`three_runs`], with tensions)
 /// whose sensors read `angle_gain` times the output angle and `tension_gain` times
 /// every tension.
 fn miscalibrated_sweep(angle_gain: f64, tension_gain: f64, seed: u64) -> Dataset {
-    let mut opt = SweepOptions::paper("dyneema2", seed);
-    opt.runs = vec![
-        (147.0, 4.5f64.to_radians()),
-        (147.0, 1.5f64.to_radians()),
-        (294.0, 3f64.to_radians()),
-    ];
-    opt.frequencies_hz = vec![0.5, 1.0, 1.5, 1.8, 2.1, 2.4, 2.7, 3.0, 3.5, 4.5, 6.0];
-    opt.settle_s = 2.0;
-    opt.min_hold_s = 2.0;
+    let opt = three_runs(seed);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("control");
     synth::sweep(&base(), &opt)
@@ -170,7 +172,16 @@ fn a_miscalibrated_load_cell_is_quantified_as_a_gain() {
     // the tensions together, cannot absorb a gain on the tensions at a set mean
     // tension); no other signature removes any of it.
     let ds = miscalibrated_sweep(1.0, 1.05, 21);
-    let sigs = baseline_signatures(&ds, &base());
+    let (sigs, by_channel) = baseline_signatures_and_channels(&ds, &base());
+    // the explanation's "by channel" sentence: the load cells hold the excess
+    let angle = by_channel
+        .iter()
+        .find(|c| c.0 == "output_angle_rad")
+        .map_or(0.0, |c| c.1);
+    assert!(angle < 0.01, "{by_channel:?}");
+    assert_eq!(by_channel.len(), 5, "{by_channel:?}");
+    let total: f64 = by_channel.iter().map(|c| c.1).sum();
+    assert!((total - 1.0).abs() < 1e-12, "{by_channel:?}");
     let s = find(&sigs, SignatureKind::Calibration);
     assert_eq!(s.unit, "1");
     assert!((s.size - 0.05).abs() < 1e-3, "{s:?}");
@@ -203,7 +214,9 @@ fn a_miscalibrated_encoder_is_quantified_as_a_gain() {
     // The output encoder reading 3% high (or the output radius 3% off): the
     // quasi-static ratio of output to input, which no stiffness changes, is off by 3%.
     let ds = miscalibrated_sweep(1.03, 1.0, 22);
-    let sigs = baseline_signatures(&ds, &base());
+    let (sigs, by_channel) = baseline_signatures_and_channels(&ds, &base());
+    assert_eq!(by_channel[0].0, "output_angle_rad", "{by_channel:?}");
+    assert!(by_channel[0].1 > 0.9, "{by_channel:?}");
     let s = find(&sigs, SignatureKind::Calibration);
     assert!(
         s.term
