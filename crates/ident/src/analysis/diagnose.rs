@@ -1995,7 +1995,6 @@ fn significant(x: f64) -> String {
     }
 }
 
-/// One sentence on a shape-free refinement.
 /// The share of the stacked excess over the floor (each channel weighted by its noise,
 /// as in the fits; a channel below its floor counts 0) that each measured channel
 /// holds, over every run, largest first; empty for an arm (its channels are compared in
@@ -2005,21 +2004,15 @@ pub fn excess_by_channel(prep: &Prepared<'_>, sims: &[Vec<f64>]) -> Vec<(&'stati
     if prep.kind == DataKind::ArmMoves {
         return Vec::new();
     }
-    let primary = super::prepare::primary_name(&prep.ds.kind);
     let mut out: Vec<(&'static str, f64)> = Vec::new();
-    for (run, y) in prep.runs.iter().zip(sims) {
-        let len = run.measured.len();
-        for k in 0..run.n_channels() {
-            let Some(yk) = y.get(k * len..(k + 1) * len) else {
-                continue;
-            };
-            let (w2, m) = (run.weight(k).powi(2), run.channel_values(k));
-            let ssr: f64 = run.idx.iter().map(|&i| w2 * (yk[i] - m[i]).powi(2)).sum();
-            let excess = ssr - run.noise_sigma.powi(2) * run.idx.len() as f64;
-            let name = run.channel_name(k, primary);
-            match out.iter_mut().find(|(n, _)| *n == name) {
+    for (run, channels) in prep.runs.iter().zip(prep.channel_sums(sims)) {
+        for (k, c) in channels.iter().enumerate() {
+            // (weighted into the primary's unit, where every channel's floor is the
+            // primary's noise per sample)
+            let excess = run.weight(k).powi(2) * c.sse - run.noise_sigma.powi(2) * c.n as f64;
+            match out.iter_mut().find(|(n, _)| *n == c.name) {
                 Some(slot) => slot.1 += excess,
-                None => out.push((name, excess)),
+                None => out.push((c.name, excess)),
             }
         }
     }
@@ -2044,6 +2037,7 @@ fn table_value(y: f64) -> String {
     }
 }
 
+/// One sentence on a shape-free refinement.
 fn describe_refinement(r: &ShapeRefinement) -> String {
     let k = r.knots.len().saturating_sub(1);
     let points: Vec<String> = r

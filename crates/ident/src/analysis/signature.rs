@@ -573,7 +573,7 @@ pub fn signatures(
         }
     }
     if prep.kind != DataKind::ArmMoves {
-        if let Some(sig) = calibration(prep, sims) {
+        if let Some(sig) = calibration(b) {
             out.push(sig);
         }
     }
@@ -980,14 +980,15 @@ const CALIBRATION_MIN_SHARE: f64 = 0.2;
 /// removing any of it) or encoder (3% on the output angle) is otherwise a failure no
 /// term accounts for, and the baseline's fitted stiffness may lean on it. The term is
 /// the largest gain error, of the channel whose calibration removes most.
-fn calibration(prep: &Prepared<'_>, sims: &[Vec<f64>]) -> Option<Signature> {
+fn calibration(b: &Base<'_, '_>) -> Option<Signature> {
+    let (prep, sims) = (b.prep, b.sims);
     let n_channels = prep.runs.iter().map(RunData::n_channels).max()?;
     let primary = super::prepare::primary_name(&prep.ds.kind);
     // per channel: (name, weight^2-scaled SSR before, after, g, c, residual-model
     // correlation)
     let mut per: Vec<(&'static str, f64, f64, f64, f64, f64)> = Vec::new();
     for k in 0..n_channels {
-        // the channel's samples over the runs that stack it: (model, measured, w^2)
+        // the channel's samples over the runs that stack it: (run, model, measured)
         let (mut n, mut sy, mut sm) = (0.0, 0.0, 0.0);
         let mut name = primary;
         let samples = || {
@@ -1038,8 +1039,7 @@ fn calibration(prep: &Prepared<'_>, sims: &[Vec<f64>]) -> Option<Signature> {
         };
         per.push((name, before, after.min(before), g, c, corr));
     }
-    let ssr = prep.ssr(sims);
-    let excess = ssr - prep.floor_ssr();
+    let excess = b.excess;
     let removed: f64 = per.iter().map(|p| p.1 - p.2).sum();
     if !(excess > 0.0 && removed >= CALIBRATION_MIN_SHARE * excess) {
         return None;

@@ -141,6 +141,16 @@ fn relax_base() -> Model {
     Model::baseline(&ds).unwrap()
 }
 
+/// `model` with a second retardation time (`extra_retardation`) of stiffness `k_n` [N]
+/// and damping `c_n_s` [N*s] added.
+pub(crate) fn with_retardation(model: &Model, k_n: f64, c_n_s: f64) -> Model {
+    let mut m = model.with_effect(effects::find("extra_retardation").unwrap());
+    let e = m.effects.len() - 1;
+    m.effects[e].params[0].value = k_n;
+    m.effects[e].params[1].value = c_n_s;
+    m
+}
+
 /// The loop's errors are typed values (a base parameter the law cannot take, an effect
 /// refusing its values, a synthetic test's options) whose messages are the ones the CLI
 /// prints. A base parameter sets what its typed role says (read once from the model
@@ -217,9 +227,7 @@ fn small_confusion_matrix_relaxation() {
     let (d, _, _) = diagnose(&prep, &base).unwrap();
     assert_eq!(d.missing_effect, None, "{}", d.explanation);
 
-    let mut hidden = base.with_effect(effects::find("extra_retardation").unwrap());
-    hidden.effects[0].params[0].value = 1.5e5;
-    hidden.effects[0].params[1].value = 3e6;
+    let hidden = with_retardation(&base, 1.5e5, 3e6);
     let ds = short_relaxation(&hidden, 12);
     let prep = Prepared::new(&ds).unwrap();
     let (d, base_fit, winner) = diagnose(&prep, &base).unwrap();
@@ -290,9 +298,7 @@ fn two_hidden_effects_are_both_found_and_no_third() {
     let base = relax_base();
     let mut truth = base.with_effect(effects::find("plastic_ratchet").unwrap());
     truth.effects[0].params[0].value = 1e5;
-    let mut truth = truth.with_effect(effects::find("extra_retardation").unwrap());
-    truth.effects[1].params[0].value = 1.5e5;
-    truth.effects[1].params[1].value = 3e6;
+    let truth = with_retardation(&truth, 1.5e5, 3e6);
     let ds = short_relaxation(&truth, 21);
     let prep = Prepared::new(&ds).unwrap();
     let mut model = base;
@@ -332,9 +338,7 @@ fn two_hidden_effects_are_both_found_and_no_third() {
 #[test]
 fn a_catalog_effect_far_from_the_floor_is_a_lead_not_a_name() {
     let base = relax_base();
-    let mut truth = base.with_effect(effects::find("extra_retardation").unwrap());
-    truth.effects[0].params[0].value = 3e4;
-    truth.effects[0].params[1].value = 6e5;
+    let truth = with_retardation(&base, 3e4, 6e5);
     let mut ds = short_relaxation(&truth, 22);
     let longreach_ident::DatasetKind::Relaxation(rx) = &mut ds.kind else {
         panic!("not a relaxation dataset")
@@ -377,17 +381,10 @@ fn a_catalog_effect_far_from_the_floor_is_a_lead_not_a_name() {
 #[test]
 fn a_fit_from_several_starts_keeps_the_best_basin() {
     let base = relax_base();
-    let mut truth = base.with_effect(effects::find("extra_retardation").unwrap());
-    truth.effects[0].params[0].value = 1.5e5;
-    truth.effects[0].params[1].value = 3e6;
+    let truth = with_retardation(&base, 1.5e5, 3e6);
     let prep_ds = short_relaxation(&truth, 31);
     let prep = Prepared::new(&prep_ds).unwrap();
-    let at = |k: f64, c: f64| {
-        let mut m = truth.clone();
-        m.effects[0].params[0].value = k;
-        m.effects[0].params[1].value = c;
-        m
-    };
+    let at = |k: f64, c: f64| with_retardation(&base, k, c);
     let (far, near) = (at(1e7, 2e5), at(2e5, 2e6));
     let alone: Vec<f64> = [&far, &near]
         .iter()

@@ -4,6 +4,7 @@
 
 use std::path::PathBuf;
 
+use super::diagnose_loop::with_retardation;
 use longreach_drive::effects;
 use longreach_ident::analysis::{diagnose, Prepared, FLOOR_MARGIN, REFINE_MARGIN};
 use longreach_ident::model::{Model, ShapeUse};
@@ -319,10 +320,7 @@ fn a_second_pass_on_a_table_model_names_the_next_effect_with_the_table_free() {
         let sh = ShapeUse::new(effect, effect.shape().unwrap(), &knots, v, fit).unwrap();
         base.with_effect(effect).with_shape(0, sh)
     };
-    let mut truth =
-        with_table(&values, false).with_effect(effects::find("extra_retardation").unwrap());
-    truth.effects[1].params[0].value = 1.5e5;
-    truth.effects[1].params[1].value = 3e6;
+    let truth = with_retardation(&with_table(&values, false), 1.5e5, 3e6);
     let mut opt = synth::RelaxationOptions::paper("dyneema2", 41);
     opt.more_strains = vec![0.008];
     let d = synth::relaxation(&truth, &opt).unwrap();
