@@ -165,6 +165,18 @@ pub const NAME_MARGIN: f64 = 2.0;
 /// each with each: 3 gives 3 pairs.
 pub const PAIR_CANDIDATES: usize = 3;
 
+/// Least share of what the best single candidate leaves over the floor (its squared
+/// error, refined) that the best pair's second effect must remove in its catalog law
+/// (the pair's fit against the better of its members' catalog fits) before the pair's
+/// laws are refined ([`partner_shows`]). A second effect that is in the data shows in
+/// its catalog law first (a law of another shape is still mostly its first-order
+/// trend); one that removes a few percent only bends a second law onto the first's
+/// leftovers, and refining two tables at once is the dearest part of a diagnosis: an
+/// output encoder with a cubic error (0.3 rad^-2, outside the catalog) had the pair
+/// `relay_friction` + `nonlinear_stiffness` refined from 0.0420 to 0.0387 against the
+/// single's refined 0.0388 (0.7% of its excess), 450 of the diagnosis' 983 s of CPU.
+pub const PARTNER_MIN_SHARE: f64 = 0.1;
+
 /// The best single candidates whose laws are refined in their shape-free form before
 /// the decision when one of the runners-up could explain the failure
 /// ([`refine_contenders`]).
@@ -1150,6 +1162,43 @@ fn catalog_pair_decisive(
     excess > 0.0 && (catalog.ssr - pair.ssr) >= MIN_EXPLAINED * excess
 }
 
+/// What the best pair's second effect removes in its catalog law, as a share of what
+/// the best single candidate (refined) leaves over the floor: the pair's squared error
+/// against the better of its members' catalog fits ([`PARTNER_MIN_SHARE`]). `None`
+/// when there is no pair, a member has no catalog fit or the single leaves nothing.
+fn partner_share(
+    pairs: &[(Candidate, Option<Fitted>)],
+    cands: &[(Candidate, Option<Fitted>)],
+    parametric: &[(Candidate, Option<Fitted>)],
+    ssr_floor: f64,
+    base_effects: usize,
+) -> Option<f64> {
+    let (_, Some(pair)) = pairs.first()? else {
+        return None;
+    };
+    let (_, Some(single)) = cands.first()? else {
+        return None;
+    };
+    let excess = single.ssr - ssr_floor;
+    if excess <= 0.0 {
+        return None;
+    }
+    let members: Vec<&str> = pair
+        .model
+        .effects
+        .iter()
+        .skip(base_effects)
+        .map(|u| u.effect.name())
+        .collect();
+    let best_member = members
+        .iter()
+        .map(|m| catalog_fit(parametric, m).map(|f| f.ssr))
+        .collect::<Option<Vec<f64>>>()?
+        .into_iter()
+        .fold(f64::INFINITY, f64::min);
+    Some((best_member - pair.ssr) / excess)
+}
+
 /// One effect never becomes two: each member of the best pair refitted alone from the
 /// pair's values, replacing its single candidate when that does better. A single fit
 /// can stop short of its own optimum (its starts far from it, its budget spent in a
@@ -1524,8 +1573,25 @@ pub fn diagnose_with(
         // (pairs weighed against a tabled single have their laws refined only when, in
         // their catalog laws, they are decisive against the single's catalog law: a
         // second effect must show before two tables are searched at once)
-        if !for_table || catalog_pair_decisive(&pairs, &cands, &parametric, ssr_floor) {
+        let share = partner_share(
+            &pairs,
+            &cands,
+            &parametric,
+            ssr_floor,
+            base.model.effects.len(),
+        );
+        let partner_shows = share.is_none_or(|s| s >= PARTNER_MIN_SHARE);
+        if (!for_table || catalog_pair_decisive(&pairs, &cands, &parametric, ssr_floor))
+            && partner_shows
+        {
             refine_best_pair(prep, &judge, &mut pairs, &mut refinements, &mut notes);
+        } else if let (false, Some(s), Some((c, _))) = (partner_shows, share, pairs.first()) {
+            notes.push(format!(
+                "The best pair, {}, in its catalog laws removes {:.1}% of what the best single leaves over the floor (less than {:.0}%): its second effect does not show, and its laws are not refined. ",
+                c.effect.replace('+', " and "),
+                100.0 * s,
+                100.0 * PARTNER_MIN_SHARE
+            ));
         }
         refit_pair_members(prep, &judge, &pairs, &mut cands, &mut notes);
     }
@@ -2084,7 +2150,77 @@ fn describe_refinement(r: &ShapeRefinement) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::{significant, table_value};
+    use super::{partner_share, significant, table_value, Candidate, Fitted, PARTNER_MIN_SHARE};
+    use crate::model::Model;
+    use crate::Dataset;
+    use longreach_drive::effects;
+
+    /// A fit of `model` with squared error `ssr`, and its candidate named `effect`.
+    fn fitted(effect: &str, model: Model, ssr: f64) -> (Candidate, Option<Fitted>) {
+        let c = Candidate {
+            effect: effect.into(),
+            nrmse: ssr.sqrt(),
+            score: 0.0,
+            explained: 0.0,
+            params: Default::default(),
+            interval_95: Default::default(),
+            interval_clipped: Default::default(),
+            decisive: false,
+            screened: false,
+            error: None,
+        };
+        let f = Fitted {
+            model,
+            fit: None,
+            nrmse_before: ssr.sqrt(),
+            nrmse: ssr.sqrt(),
+            noise_floor: 1.0,
+            ssr,
+            sims: Vec::new(),
+        };
+        (c, Some(f))
+    }
+
+    /// The pair's gain is taken against the better of its members' catalog fits and
+    /// measured on what the best single, refined, leaves over the floor.
+    #[test]
+    fn a_pair_partner_is_weighed_on_what_the_refined_single_leaves() {
+        let dir = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../data/examples/example_sweep_control"
+        );
+        let base = Model::baseline(&Dataset::load(dir).unwrap()).unwrap();
+        let relay = base.with_effect(effects::find("relay_friction").unwrap());
+        let stiff = base.with_effect(effects::find("nonlinear_stiffness").unwrap());
+        let both = relay.with_effect(effects::find("nonlinear_stiffness").unwrap());
+        let n_base = base.effects.len();
+        let floor = 2.0;
+        // catalog singles: relay 10, stiffness 11; relay refined: 8
+        let parametric = vec![
+            fitted("relay_friction", relay.clone(), 10.0),
+            fitted("nonlinear_stiffness", stiff, 11.0),
+        ];
+        let cands = vec![fitted("relay_friction", relay, 8.0)];
+        let share = |pair_ssr: f64| {
+            let pairs = vec![fitted(
+                "relay_friction+nonlinear_stiffness",
+                both.clone(),
+                pair_ssr,
+            )];
+            partner_share(&pairs, &cands, &parametric, floor, n_base).unwrap()
+        };
+        // the pair removes 0.1 of the relay's catalog 10, of 6 left over the floor
+        assert!((share(9.9) - 0.1 / 6.0).abs() < 1e-12, "{}", share(9.9));
+        assert!(share(9.9) < PARTNER_MIN_SHARE);
+        assert!((share(9.0) - 1.0 / 6.0).abs() < 1e-12);
+        assert!(share(9.0) >= PARTNER_MIN_SHARE);
+        // a pair worse than its better member shows nothing
+        assert!(share(10.5) < 0.0);
+        // a member without a catalog fit, or a single at the floor: no gate
+        let pairs = vec![fitted("relay_friction+nonlinear_stiffness", both, 9.0)];
+        assert!(partner_share(&pairs, &cands, &parametric[..1], floor, n_base).is_none());
+        assert!(partner_share(&pairs, &cands, &parametric, 8.0, n_base).is_none());
+    }
 
     #[test]
     fn knots_are_written_to_three_significant_digits() {
