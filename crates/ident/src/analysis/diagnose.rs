@@ -168,13 +168,14 @@ pub const PAIR_CANDIDATES: usize = 3;
 /// Least share of what the best single candidate leaves over the floor (its squared
 /// error, refined) that the best pair's second effect must remove in its catalog law
 /// (the pair's fit against the better of its members' catalog fits) before the pair's
-/// laws are refined ([`partner_shows`]). A second effect that is in the data shows in
+/// laws are refined ([`partner_share`]). A second effect that is in the data shows in
 /// its catalog law first (a law of another shape is still mostly its first-order
 /// trend); one that removes a few percent only bends a second law onto the first's
-/// leftovers, and refining two tables at once is the dearest part of a diagnosis: an
-/// output encoder with a cubic error (0.3 rad^-2, outside the catalog) had the pair
-/// `relay_friction` + `nonlinear_stiffness` refined from 0.0420 to 0.0387 against the
-/// single's refined 0.0388 (0.7% of its excess), 450 of the diagnosis' 983 s of CPU.
+/// leftovers, and refining two tables at once is the dearest part of a diagnosis: on
+/// a sweep whose output encoder has a cubic error (0.3 rad^-2, outside the catalog)
+/// the pair `relay_friction` + `nonlinear_stiffness` removed 0.2% in its catalog laws,
+/// and its refinement took 450 of the diagnosis' 983 s of CPU to reach NRMSE 0.0387
+/// against the refined single's 0.0388.
 pub const PARTNER_MIN_SHARE: f64 = 0.1;
 
 /// The best single candidates whose laws are refined in their shape-free form before
