@@ -1184,19 +1184,14 @@ fn partner_share(
     if excess <= 0.0 {
         return None;
     }
-    let members: Vec<&str> = pair
+    let best_member = pair
         .model
         .effects
         .iter()
         .skip(base_effects)
-        .map(|u| u.effect.name())
-        .collect();
-    let best_member = members
-        .iter()
-        .map(|m| catalog_fit(parametric, m).map(|f| f.ssr))
-        .collect::<Option<Vec<f64>>>()?
-        .into_iter()
-        .fold(f64::INFINITY, f64::min);
+        .try_fold(f64::INFINITY, |best, u| {
+            catalog_fit(parametric, u.effect.name()).map(|f| best.min(f.ssr))
+        })?;
     Some((best_member - pair.ssr) / excess)
 }
 
@@ -1571,28 +1566,27 @@ pub fn diagnose_with(
         if coarse.is_some() {
             finish_pairs(prep, &judge, &mut pairs);
         }
-        // (pairs weighed against a tabled single have their laws refined only when, in
+        // A pair's laws are refined only when its second effect shows in its catalog law
+        // ([`PARTNER_MIN_SHARE`]); pairs weighed against a tabled single only when, in
         // their catalog laws, they are decisive against the single's catalog law: a
-        // second effect must show before two tables are searched at once)
-        let share = partner_share(
+        // second effect must show before two tables are searched at once.
+        let hidden_partner = partner_share(
             &pairs,
             &cands,
             &parametric,
             ssr_floor,
             base.model.effects.len(),
-        );
-        let partner_shows = share.is_none_or(|s| s >= PARTNER_MIN_SHARE);
-        if (!for_table || catalog_pair_decisive(&pairs, &cands, &parametric, ssr_floor))
-            && partner_shows
-        {
-            refine_best_pair(prep, &judge, &mut pairs, &mut refinements, &mut notes);
-        } else if let (false, Some(s), Some((c, _))) = (partner_shows, share, pairs.first()) {
+        )
+        .filter(|&s| s < PARTNER_MIN_SHARE);
+        if let (Some(s), Some((c, _))) = (hidden_partner, pairs.first()) {
             notes.push(format!(
                 "The best pair, {}, in its catalog laws removes {:.1}% of what the best single leaves over the floor (less than {:.0}%): its second effect does not show, and its laws are not refined. ",
                 c.effect.replace('+', " and "),
                 100.0 * s,
                 100.0 * PARTNER_MIN_SHARE
             ));
+        } else if !for_table || catalog_pair_decisive(&pairs, &cands, &parametric, ssr_floor) {
+            refine_best_pair(prep, &judge, &mut pairs, &mut refinements, &mut notes);
         }
         refit_pair_members(prep, &judge, &pairs, &mut cands, &mut notes);
     }
