@@ -893,12 +893,12 @@ fn bent_base(f: &Fitted, base: &Model) -> Option<(String, f64, &'static str)> {
 
 /// The pair step: the best single candidates (score above [`MIN_SCORE`], at most
 /// [`PAIR_CANDIDATES`]) fitted two at a time, and the best single with its screened
-/// partner and, on sweeps, with the best-ranked other; each pair from the start that simulates
-/// closest to the data among its own search of starting values and its two single fits
-/// with the other's effect added at its fitted values, and on sweeps from its own
-/// search too where that is not the closest; fitted on `coarse` (an arm's coarse twin) when there is
-/// one, else on `prep`, and scored on `prep`. Returns the pairs as candidates
-/// scored against the baseline, best first, with their fits (finished at the chosen
+/// partner and, on sweeps, with the best-ranked other; each pair from the start that
+/// simulates closest to the data among its own search of starting values and its two
+/// single fits with the other's effect added at its fitted values, and on sweeps from
+/// its own search too where that is not the closest; fitted on `coarse` (an arm's
+/// coarse twin) when there is one, else on `prep`, and scored on `prep`. Returns the
+/// pairs as candidates scored against the baseline, best first, with their fits (finished at the chosen
 /// step by [`finish_pairs`] and refined by [`refine_best_pair`] when they matter).
 ///
 /// `cands` are the single candidates ranked; `parametric` the same fits with their
@@ -1050,9 +1050,10 @@ fn pair_step(
             // 2034 N*s, the pair stopped at NRMSE 0.480; from its own search,
             // simulating farther, it reached the truth at 0.0260). Not on a specimen's
             // data: one relaxation cannot tell its laws apart, and from all their
-            // starts the pairs of a ratchet with a stiffening rope tie (dyneema2) (0.0117 for
-            // the truth and for `nonlinear_creep` + `plastic_ratchet`, 0.0124 for
-            // creep + stiffening), none decisive, and the creep table was named alone.
+            // starts the pairs of a ratchet with a stiffening rope on dyneema2 tie
+            // (0.0117 for the truth and for `nonlinear_creep` + `plastic_ratchet`,
+            // 0.0124 for creep + stiffening), none decisive, and the creep table was
+            // named alone.
             // In the exhaustive step from every other start. A start whose least
             // squares joins a basin found before stops there.
             let own_search_too = prep.kind == DataKind::SineSweep;
