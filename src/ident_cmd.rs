@@ -86,9 +86,8 @@ pub struct DiagnoseArgs {
     /// the noise floor, pair it with every other candidate (not only the best few, one
     /// screened partner and on sweeps the best-ranked other) and fit every pair from
     /// each of its starts (not only the closest to the data and on sweeps its own
-    /// search). Slower; for a
-    /// diagnosis that ends with a lead a second effect may explain (docs/models.md,
-    /// "Decision rule").
+    /// search). Slower; for a diagnosis that ends with a lead a second effect may
+    /// explain (docs/models.md, "Decision rule").
     #[arg(long)]
     all_pairs: bool,
     #[command(flatten)]

@@ -898,8 +898,9 @@ fn bent_base(f: &Fitted, base: &Model) -> Option<(String, f64, &'static str)> {
 /// single fits with the other's effect added at its fitted values, and on sweeps from
 /// its own search too where that is not the closest; fitted on `coarse` (an arm's
 /// coarse twin) when there is one, else on `prep`, and scored on `prep`. Returns the
-/// pairs as candidates scored against the baseline, best first, with their fits (finished at the chosen
-/// step by [`finish_pairs`] and refined by [`refine_best_pair`] when they matter).
+/// pairs as candidates scored against the baseline, best first, with their fits
+/// (finished at the chosen step by [`finish_pairs`] and refined by
+/// [`refine_best_pair`] when they matter).
 ///
 /// `cands` are the single candidates ranked; `parametric` the same fits with their
 /// catalog laws (before any refinement of their shape): a pair starts from those, its
@@ -916,6 +917,14 @@ fn pair_step(
 ) -> Vec<(Candidate, Option<Fitted>)> {
     let search = coarse.unwrap_or(prep);
     let catalog = |c: &Candidate| catalog_fit(parametric, &c.effect);
+    // The best-ranked partner and the pair's own search as a second start (below) are a
+    // sweep's only. On a specimen's data one relaxation cannot tell its laws apart, and
+    // both made the pairs of a ratchet with a stiffening rope tie with the pair in the
+    // data: from all their starts `nonlinear_creep` + `plastic_ratchet` reached the
+    // truth's 0.0117 on dyneema2 (none decisive, the creep table named alone), and the
+    // extra partner gave `plastic_ratchet` + `nonlinear_creep` 1.02x the floor beside
+    // the truth's 1.02x on vectran2 (nothing named); on arms they are untried.
+    let sweep = prep.kind == DataKind::SineSweep;
     let mut tops: Vec<&Fitted> = cands
         .iter()
         .filter(|(c, f)| c.score > MIN_SCORE && f.is_some())
@@ -981,13 +990,8 @@ fn pair_step(
             // so one simulation does not weigh it (a stiffening rope with internal
             // damping on vectran2: the damping ranked fourth alone, its single fit at
             // 5x the true c1, and its pair with the stiffening screened at 10x relay
-            // friction's). Not on a specimen's data, whose one relaxation cannot tell
-            // its laws apart: there the extra pair ties with the one in the data (a
-            // ratchet with a stiffening rope on vectran2: `plastic_ratchet` +
-            // `nonlinear_creep` at 1.02x the floor as the truth's pair), and a pair
-            // named at 1.02x became nothing named; on arms it is untried.
-            let ranked = prep.kind == DataKind::SineSweep;
-            if let Some(&o) = others.first().filter(|_| ranked) {
+            // friction's).
+            if let Some(&o) = others.first().filter(|_| sweep) {
                 if !tops.iter().any(|t| std::ptr::eq(*t, o)) {
                     tops.push(o);
                     combos.push((0, tops.len() - 1));
@@ -1048,17 +1052,10 @@ fn pair_step(
             // its basin (the stiffening with damping on vectran2: from the start
             // closest to the data, the stiffening's single fit with the damping at
             // 2034 N*s, the pair stopped at NRMSE 0.480; from its own search,
-            // simulating farther, it reached the truth at 0.0260). Not on a specimen's
-            // data: one relaxation cannot tell its laws apart, and from all their
-            // starts the pairs of a ratchet with a stiffening rope on dyneema2 tie
-            // (0.0117 for the truth and for `nonlinear_creep` + `plastic_ratchet`,
-            // 0.0124 for creep + stiffening), none decisive, and the creep table was
-            // named alone.
-            // In the exhaustive step from every other start. A start whose least
-            // squares joins a basin found before stops there.
-            let own_search_too = prep.kind == DataKind::SineSweep;
-            let from_too =
-                |&&i: &&usize| (all_pairs || (own_search_too && i >= 2)) && ssr[i].is_finite();
+            // simulating farther, it reached the truth at 0.0260). In the exhaustive
+            // step from every other start. A start whose least squares joins a basin
+            // found before stops there.
+            let from_too = |&&i: &&usize| (all_pairs || (sweep && i >= 2)) && ssr[i].is_finite();
             let mut from = vec![start.clone()];
             from.extend(
                 order[1..]
@@ -1356,9 +1353,9 @@ pub struct DiagnoseOptions<'a> {
     pub without: &'a [&'a str],
     /// The exhaustive pair step: when the pair step runs, the best single candidate is
     /// paired with every other candidate (not only the best few, the screened partner
-    /// and on sweeps the best-ranked other), and every pair is fitted from each of its starts
-    /// (not only from the one that simulates closest to the data and from its own
-    /// search). The decision rule is the same. Slower; for a diagnosis that ends with a
+    /// and on sweeps the best-ranked other), and every pair is fitted from each of its
+    /// starts (not only from the one that simulates closest to the data and on sweeps
+    /// from its own search). The decision rule is the same. Slower; for a diagnosis that ends with a
     /// lead a second effect may explain (docs/models.md, "Decision rule").
     pub all_pairs: bool,
 }
