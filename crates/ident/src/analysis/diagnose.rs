@@ -849,6 +849,148 @@ fn decisive_first(
     })
 }
 
+/// What the pairs say against the best single candidate ([`pair_verdict`]).
+#[derive(Debug, Clone, PartialEq)]
+enum PairVerdict {
+    /// No pair, or none that explains what the best single leaves (or the single
+    /// reaches the floor): the single is judged alone.
+    None,
+    /// The best pair is decisive against the best single and ahead of the next pair.
+    Decisive,
+    /// The best pair is decisive against the best single, but not ahead of every other
+    /// pair: these tie. `without_single` names the tied pairs (the best among them)
+    /// that do without the single's effect.
+    Tied { without_single: Vec<String> },
+}
+
+/// Whether the best pair is decisive against the best single candidate (as a
+/// candidate is against the baseline: it explains most of what the single leaves and
+/// scores very strongly above it, [`decisive_first`]) and leads the next pair by the
+/// score gap; when it is decisive against the single only, which pairs tie with it
+/// (every other pair that, second to it, keeps it from being decisive) and do without
+/// the single's effect.
+///
+/// A tie whose pairs do not all hold the single's effect leaves the single unnamed
+/// (in [`diagnose_with`]): a second effect shows, and the single may imitate part of
+/// a pair it is not in. Found with `--all-pairs` on one relaxation holding a plastic
+/// ratchet and a stiffening rope (`synth --kind relaxation --effect
+/// plastic_ratchet=1e5 --effect nonlinear_stiffness=2e-3 --seed 4000`): the truth's
+/// pair (0.99x the floor) tied with `nonlinear_creep` + `plastic_ratchet` (the next
+/// pair's score counts the creep table's knots the single needs, which the pairs do
+/// not), and the single `nonlinear_creep`, a 7-knot table at 1.36x whose factor leaps
+/// 7613-fold at the ratchet's yield, was named alone.
+fn pair_verdict(
+    prep: &Prepared<'_>,
+    judge: &Judge,
+    cands: &[(Candidate, Option<Fitted>)],
+    pairs: &[(Candidate, Option<Fitted>)],
+    ssr_floor: f64,
+    n: f64,
+    base_effects: usize,
+) -> PairVerdict {
+    let (Some((single_c, Some(single))), Some((best_c, Some(pair)))) =
+        (cands.first(), pairs.first())
+    else {
+        return PairVerdict::None;
+    };
+    // (a single that reaches the floor leaves nothing for a second effect)
+    if single.nrmse <= FLOOR_MARGIN * single.noise_floor {
+        return PairVerdict::None;
+    }
+    let vs_single = Judge {
+        base_ssr: single.ssr,
+        excess: (single.ssr - ssr_floor).max(0.0),
+        n,
+        k_base: single.model.fit_specs(prep.runs.len()).len(),
+        n_runs: prep.runs.len(),
+        screened: false,
+    };
+    let first = (vs_single.candidate(String::new(), pair), Some(pair.clone()));
+    if !decisive_first(
+        std::slice::from_ref(&first),
+        single.ssr,
+        ssr_floor,
+        n,
+        base_effects,
+    ) {
+        return PairVerdict::None;
+    }
+    // the next pairs' lead over the single, on the same scale
+    let single_score = judge.candidate(String::new(), single).score;
+    let against_single = |(c, f): &(Candidate, Option<Fitted>)| {
+        let mut c = c.clone();
+        c.score -= single_score;
+        (c, f.clone())
+    };
+    let rest: Vec<_> = pairs.iter().skip(1).map(against_single).collect();
+    let ranked: Vec<_> = std::iter::once(first.clone())
+        .chain(rest.iter().cloned())
+        .collect();
+    if decisive_first(&ranked, single.ssr, ssr_floor, n, base_effects) {
+        return PairVerdict::Decisive;
+    }
+    let holds_single = |c: &Candidate| c.effect.split('+').any(|e| e == single_c.effect);
+    let tied = std::iter::once(best_c).chain(
+        pairs
+            .iter()
+            .skip(1)
+            .zip(&rest)
+            .filter(|(_, r)| {
+                !decisive_first(
+                    &[first.clone(), (*r).clone()],
+                    single.ssr,
+                    ssr_floor,
+                    n,
+                    base_effects,
+                )
+            })
+            .map(|((c, _), _)| c),
+    );
+    PairVerdict::Tied {
+        without_single: tied
+            .filter(|c| !holds_single(c))
+            .map(|c| c.effect.clone())
+            .collect(),
+    }
+}
+
+/// The note of a single left unnamed because tied pairs do without its effect.
+fn tied_pairs_note(
+    single: &Candidate,
+    pairs: &[(Candidate, Option<Fitted>)],
+    without_single: &[String],
+    noise_floor: f64,
+) -> String {
+    let floor = noise_floor.max(f64::MIN_POSITIVE);
+    let listed: Vec<String> = pairs
+        .iter()
+        .take(3)
+        .map(|(c, _)| {
+            format!(
+                "{} {:.4} ({:.2}x the floor, score {:.1})",
+                c.effect.replace('+', " and "),
+                c.nrmse,
+                c.nrmse / floor,
+                c.score
+            )
+        })
+        .collect();
+    format!(
+        "The best pairs ({}) each explain most of what the best single, {}, leaves ({:.2}x the floor), and these data do not tell them apart; {} {} without {}, so {} is not named alone: a second effect shows, and which pair holds it is undecided (a test of another kind, a second strain or tension tells them apart; `diagnose --model` with one pair written in weighs the other). ",
+        listed.join("; "),
+        single.effect,
+        single.nrmse / floor,
+        without_single
+            .iter()
+            .map(|e| e.replace('+', " and "))
+            .collect::<Vec<_>>()
+            .join(", "),
+        if without_single.len() == 1 { "does" } else { "do" },
+        single.effect,
+        single.effect,
+    )
+}
+
 /// Whether a fitted model leaves the data within [`NAME_MARGIN`] x the noise floor.
 fn nameable(f: &Fitted) -> bool {
     f.nrmse <= NAME_MARGIN * f.noise_floor
@@ -921,8 +1063,9 @@ fn pair_step(
     // sweep's only. On a specimen's data one relaxation cannot tell its laws apart, and
     // both made the pairs of a ratchet with a stiffening rope tie with the pair in the
     // data: from all their starts `nonlinear_creep` + `plastic_ratchet` reached the
-    // truth's 0.0117 on dyneema2 (none decisive, the creep table named alone), and the
-    // extra partner gave `plastic_ratchet` + `nonlinear_creep` 1.02x the floor beside
+    // truth's 0.0117 on dyneema2 (none decisive: the creep table was named alone, and
+    // since tied pairs ([`pair_verdict`]) nothing is, where the closest start alone
+    // names both), and the extra partner gave `plastic_ratchet` + `nonlinear_creep` 1.02x the floor beside
     // the truth's 1.02x on vectran2 (nothing named); on arms they are untried.
     let sweep = prep.kind == DataKind::SineSweep;
     let mut tops: Vec<&Fitted> = cands
@@ -1620,34 +1763,29 @@ pub fn diagnose_with(
     }
     let base_effects = base.model.effects.len();
     let single_decisive = !at_floor && decisive_first(&cands, base.ssr, ssr_floor, n, base_effects);
-    // A pair is decisive when it is decisive against the best single candidate (as a
-    // candidate is against the baseline: explains most of what the single leaves,
-    // scores very strongly above it) and leads the next pair by the score gap.
-    let pair_decisive = !at_floor
-        && match (cands.first(), pairs.first()) {
-            // (a single that reaches the floor leaves nothing for a second effect)
-            (Some((_, Some(single))), Some((_, Some(pair))))
-                if single.nrmse > FLOOR_MARGIN * single.noise_floor =>
-            {
-                let vs_single = Judge {
-                    base_ssr: single.ssr,
-                    excess: (single.ssr - ssr_floor).max(0.0),
-                    n,
-                    k_base: single.model.fit_specs(prep.runs.len()).len(),
-                    n_runs: prep.runs.len(),
-                    screened: false,
-                };
-                let against_single = vs_single.candidate(String::new(), pair);
-                let mut ranked = vec![(against_single, Some(pair.clone()))];
-                ranked.extend(pairs.iter().skip(1).map(|(c, f)| {
-                    let mut c = c.clone();
-                    // the next pair's lead over the single, on the same scale
-                    c.score -= judge.candidate(String::new(), single).score;
-                    (c, f.clone())
-                }));
-                decisive_first(&ranked, single.ssr, ssr_floor, n, base_effects)
+    let verdict = if at_floor {
+        PairVerdict::None
+    } else {
+        pair_verdict(prep, &judge, &cands, &pairs, ssr_floor, n, base_effects)
+    };
+    let pair_decisive = matches!(verdict, PairVerdict::Decisive);
+    // A single whose effect one of the tied pairs does without is not named: the pairs
+    // say a second effect is in the data, and the single may imitate part of a pair
+    // it is not in.
+    let single_decisive = single_decisive
+        && match &verdict {
+            PairVerdict::Tied { without_single } if !without_single.is_empty() => {
+                if let Some((single, _)) = cands.first() {
+                    notes.push(tied_pairs_note(
+                        single,
+                        &pairs,
+                        without_single,
+                        base.noise_floor,
+                    ));
+                }
+                false
             }
-            _ => false,
+            _ => true,
         };
     let mut winner = None;
     let mut lead = None;
@@ -2173,7 +2311,11 @@ fn describe_refinement(r: &ShapeRefinement) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::{partner_share, significant, table_value, Candidate, Fitted, PARTNER_MIN_SHARE};
+    use super::{
+        pair_verdict, partner_share, significant, table_value, Candidate, Fitted, Judge,
+        PairVerdict, PARTNER_MIN_SHARE,
+    };
+    use crate::analysis::prepare::Prepared;
     use crate::model::Model;
     use crate::Dataset;
     use longreach_drive::effects;
@@ -2243,6 +2385,108 @@ mod tests {
         let pairs = vec![fitted("relay_friction+nonlinear_stiffness", both, 9.0)];
         assert!(partner_share(&pairs, &cands, &parametric[..1], floor, n_base).is_none());
         assert!(partner_share(&pairs, &cands, &parametric, 8.0, n_base).is_none());
+    }
+
+    /// The pairs against the best single: a pair that explains what the single leaves
+    /// and leads the next pair by the score gap is decisive; two pairs within the gap
+    /// tie, and the tie names the pairs that do without the single's effect; a pair
+    /// that explains little of what the single leaves says nothing.
+    #[test]
+    fn tied_pairs_say_which_of_them_do_without_the_single() {
+        let dir = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../data/examples/example_sweep_control"
+        );
+        let ds = Dataset::load(dir).unwrap();
+        let prep = Prepared::new(&ds).unwrap();
+        let base = Model::baseline(&ds).unwrap();
+        let n_runs = prep.runs.len();
+        let n = prep.n_samples() as f64;
+        let with = |names: &[&str]| {
+            names.iter().fold(base.clone(), |m, e| {
+                m.with_effect(effects::find(e).unwrap())
+            })
+        };
+        // SSR on a scale where the floor is 1 and the baseline 100
+        let (ssr_floor, base_ssr) = (1.0, 100.0);
+        let judge = Judge {
+            base_ssr,
+            excess: base_ssr - ssr_floor,
+            n,
+            k_base: base.fit_specs(n_runs).len(),
+            n_runs,
+            screened: false,
+        };
+        let scored = |name: &str, m: Model, ssr: f64| {
+            let (_, f) = fitted(name, m, ssr);
+            let f = f.unwrap();
+            (judge.candidate(name.into(), &f), Some(f))
+        };
+        let single = vec![scored("relay_friction", with(&["relay_friction"]), 2.0)];
+        let without = "extra_retardation+nonlinear_stiffness";
+        let holding = "relay_friction+nonlinear_stiffness";
+        let pair = |name: &str, ssr: f64| {
+            let effs: Vec<&str> = name.split('+').collect();
+            scored(name, with(&effs), ssr)
+        };
+        let verdict = |pairs: &[(Candidate, Option<Fitted>)]| {
+            pair_verdict(
+                &prep,
+                &judge,
+                &single,
+                pairs,
+                ssr_floor,
+                n,
+                base.effects.len(),
+            )
+        };
+        // (three parameters in every pair: their scores differ by their SSR alone)
+        // at the floor and tied (SSR 1e-6 apart): the pair without relay friction named
+        let tied = [pair(without, 1.0), pair(holding, 1.000_001)];
+        assert_eq!(
+            verdict(&tied),
+            PairVerdict::Tied {
+                without_single: vec![without.to_string()]
+            }
+        );
+        // the same tie led by the pair that holds relay friction: still named
+        let tied = [pair(holding, 1.0), pair(without, 1.000_001)];
+        assert_eq!(
+            verdict(&tied),
+            PairVerdict::Tied {
+                without_single: vec![without.to_string()]
+            }
+        );
+        // ahead of the next pair by far more than the gap: decisive
+        assert_eq!(
+            verdict(&[pair(without, 1.0), pair(holding, 1.5)]),
+            PairVerdict::Decisive
+        );
+        // tied pairs that all hold the single's effect
+        let other = "relay_friction+internal_damping";
+        assert_eq!(
+            verdict(&[pair(holding, 1.0), pair(other, 1.000_001)]),
+            PairVerdict::Tied {
+                without_single: vec![]
+            }
+        );
+        // a pair that removes 10% of what the single leaves over the floor: no verdict
+        assert_eq!(
+            verdict(&[pair(without, 1.9), pair(holding, 1.95)]),
+            PairVerdict::None
+        );
+        // a single at the floor leaves nothing for a second effect
+        let at_floor = vec![scored("relay_friction", with(&["relay_friction"]), 1.05)];
+        let v = pair_verdict(
+            &prep,
+            &judge,
+            &at_floor,
+            &tied,
+            ssr_floor,
+            n,
+            base.effects.len(),
+        );
+        assert_eq!(v, PairVerdict::None);
     }
 
     #[test]
