@@ -747,10 +747,9 @@ fn confusion_extended() {
                 "relaxation"
             })
     };
-    let ropes: Vec<&str> = ["dyneema2", "vectran2"]
-        .into_iter()
-        .filter(|r| wanted(&only_ropes, r))
-        .collect();
+    // (a rope filtered out is skipped, not removed: every dataset keeps the seed and
+    // the rope index of the full run)
+    let ropes = ["dyneema2", "vectran2"];
     let t0 = std::time::Instant::now();
     // row -> (first, datasets)
     let mut rows: std::collections::BTreeMap<String, (usize, usize)> = Default::default();
@@ -758,6 +757,9 @@ fn confusion_extended() {
     let mut controls = (0usize, 0usize);
     if wanted(&parts, "shapes") {
         for (i, rope) in ropes.iter().enumerate() {
+            if !wanted(&only_ropes, rope) {
+                continue;
+            }
             for (c, (effect, kind, shape, truth)) in shape_cases(rope).into_iter().enumerate() {
                 if !wanted(&only_effects, effect) || !wanted(&only_shapes, shape) || !kind_ok(kind)
                 {
@@ -796,6 +798,9 @@ fn confusion_extended() {
     }
     if wanted(&parts, "pairs") {
         for (i, rope) in ropes.iter().enumerate() {
+            if !wanted(&only_ropes, rope) {
+                continue;
+            }
             for (kind, pair) in pair_cases(rope) {
                 if !kind_ok(kind)
                     || !(wanted(&only_effects, pair[0].0) || wanted(&only_effects, pair[1].0))
@@ -830,6 +835,9 @@ fn confusion_extended() {
     }
     if wanted(&parts, "controls") && wanted(&only_effects, "control") {
         for (i, rope) in ropes.iter().enumerate() {
+            if !wanted(&only_ropes, rope) {
+                continue;
+            }
             for kind in [DataKind::SineSweep, DataKind::Relaxation] {
                 if !kind_ok(kind) {
                     continue;

@@ -306,14 +306,15 @@ fn a_ratchet_with_a_stiffening_rope_is_not_named_as_one_creep_table() {
 
 /// The same data with the exhaustive pair step (`--all-pairs`): fitted from all their
 /// starts, `nonlinear_creep` + `plastic_ratchet` and `nonlinear_creep` +
-/// `extra_retardation` reach the floor beside the truth's pair, and the pairs tie.
-/// The creep table, at 1.36x the floor, was then named alone (a false name); a single
-/// whose effect a tied pair does without is no longer named. Heavy (about 90 s in
-/// release): `cargo test --release -p longreach-ident --test ident -- --ignored
-/// all_pairs_tie`.
+/// `extra_retardation` reach the floor beside the truth's pair (NRMSE 0.0117 each).
+/// The gap between pairs once credited the next pair with the knots of the single's
+/// creep table, the pairs tied, and the creep table, at 1.36x the floor, was named
+/// alone (a false name). Taken between the pairs' own scores the truth's pair leads by
+/// 48 and both its effects are named. Heavy (about 90 s in release): `cargo test
+/// --release -p longreach-ident --test ident -- --ignored all_pairs_names`.
 #[test]
 #[ignore]
-fn an_all_pairs_tie_does_not_name_the_creep_table_alone() {
+fn all_pairs_names_a_ratchet_with_a_stiffening_rope_not_a_creep_table() {
     let (_, base) = relax_base();
     let mut truth = base
         .with_effect(effects::find("plastic_ratchet").unwrap())
@@ -324,12 +325,10 @@ fn an_all_pairs_tie_does_not_name_the_creep_table_alone() {
         all_pairs: true,
         ..DiagnoseOptions::default()
     };
-    let (named, _, why) = diagnose_relaxation_with(&truth, &base, &[], 4000, &options);
-    assert!(named.is_empty(), "{named:?}");
-    assert!(
-        why.contains("plastic_ratchet and nonlinear_stiffness does without nonlinear_creep"),
-        "{why}"
-    );
+    let (mut named, after, _) = diagnose_relaxation_with(&truth, &base, &[], 4000, &options);
+    named.sort();
+    assert_eq!(named, ["nonlinear_stiffness", "plastic_ratchet"]);
+    assert!(after <= FLOOR_MARGIN, "after {after:.3}x the floor");
 }
 
 #[test]
