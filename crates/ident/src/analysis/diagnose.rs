@@ -980,7 +980,7 @@ fn tied_pairs_note(
         })
         .collect();
     format!(
-        "The best pairs ({}) each explain most of what the best single, {}, leaves ({:.2}x the floor), and these data do not tell them apart; {} {} without {}, so {} is not named alone: a second effect shows, and which pair holds it is undecided (a test of another kind, a second strain or tension tells them apart; `diagnose --model` with one pair written in weighs the other). ",
+        "The best pairs ({}) each explain most of what the best single, {}, leaves ({:.2}x the floor), and these data do not tell them apart; {} {} without {}, so {} is not named alone: a second effect shows, and which pair holds it is undecided (data of another kind, strain or mean tension can tell them apart). ",
         listed.join("; "),
         single.effect,
         single.nrmse / floor,
@@ -1069,8 +1069,9 @@ fn pair_step(
     // data: from all their starts `nonlinear_creep` + `plastic_ratchet` reached the
     // truth's 0.0117 on dyneema2 (none decisive with the gap between pairs then in use,
     // and the creep table named alone; with the pairs' own gap, [`pair_verdict`], the
-    // truth leads by 48, not tried with these starts since), and the extra partner gave `plastic_ratchet` + `nonlinear_creep` 1.02x the floor beside
-    // the truth's 1.02x on vectran2 (nothing named); on arms they are untried.
+    // truth leads by 48, not tried with these starts since), and the extra partner
+    // gave `plastic_ratchet` + `nonlinear_creep` 1.02x the floor beside the truth's
+    // 1.02x on vectran2 (nothing named); on arms they are untried.
     let sweep = prep.kind == DataKind::SineSweep;
     let mut tops: Vec<&Fitted> = cands
         .iter()
