@@ -747,19 +747,21 @@ fn confusion_extended() {
                 "relaxation"
             })
     };
-    // (a rope filtered out is skipped, not removed: every dataset keeps the seed and
-    // the rope index of the full run)
-    let ropes = ["dyneema2", "vectran2"];
+    // The ropes the filter keeps, each with its index in the full run (a rope filtered
+    // out is skipped, not removed: every dataset keeps the full run's seed).
+    let ropes = || {
+        ["dyneema2", "vectran2"]
+            .into_iter()
+            .enumerate()
+            .filter(|(_, r)| wanted(&only_ropes, r))
+    };
     let t0 = std::time::Instant::now();
     // row -> (first, datasets)
     let mut rows: std::collections::BTreeMap<String, (usize, usize)> = Default::default();
     let mut after = (0usize, 0usize);
     let mut controls = (0usize, 0usize);
     if wanted(&parts, "shapes") {
-        for (i, rope) in ropes.iter().enumerate() {
-            if !wanted(&only_ropes, rope) {
-                continue;
-            }
+        for (i, rope) in ropes() {
             for (c, (effect, kind, shape, truth)) in shape_cases(rope).into_iter().enumerate() {
                 if !wanted(&only_effects, effect) || !wanted(&only_shapes, shape) || !kind_ok(kind)
                 {
@@ -797,10 +799,7 @@ fn confusion_extended() {
         }
     }
     if wanted(&parts, "pairs") {
-        for (i, rope) in ropes.iter().enumerate() {
-            if !wanted(&only_ropes, rope) {
-                continue;
-            }
+        for (i, rope) in ropes() {
             for (kind, pair) in pair_cases(rope) {
                 if !kind_ok(kind)
                     || !(wanted(&only_effects, pair[0].0) || wanted(&only_effects, pair[1].0))
@@ -834,10 +833,7 @@ fn confusion_extended() {
         }
     }
     if wanted(&parts, "controls") && wanted(&only_effects, "control") {
-        for (i, rope) in ropes.iter().enumerate() {
-            if !wanted(&only_ropes, rope) {
-                continue;
-            }
+        for (i, rope) in ropes() {
             for kind in [DataKind::SineSweep, DataKind::Relaxation] {
                 if !kind_ok(kind) {
                     continue;

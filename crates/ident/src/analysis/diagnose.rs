@@ -921,12 +921,12 @@ fn pair_verdict(
     // for none, `Judge::candidate`, so the next pair's score less the single's own
     // credited it with the table's knots the best pair was not credited with: on the
     // relaxation below, more than the truth's lead of 48.)
-    let against_single = |(c, f): &(Candidate, Option<Fitted>)| {
+    let behind_first = |(c, f): &(Candidate, Option<Fitted>)| {
         let mut c = c.clone();
         c.score = first.0.score - (best_c.score - c.score);
         (c, f.clone())
     };
-    let rest: Vec<_> = pairs.iter().skip(1).map(against_single).collect();
+    let rest: Vec<_> = pairs.iter().skip(1).map(behind_first).collect();
     let ranked: Vec<_> = std::iter::once(first.clone())
         .chain(rest.iter().cloned())
         .collect();
