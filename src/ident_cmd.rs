@@ -85,7 +85,7 @@ pub struct DiagnoseArgs {
     /// The exhaustive pair step: when the best single effect leaves the data above 1.5x
     /// the noise floor, pair it with every other candidate (not only the best few, one
     /// screened partner and on sweeps the best-ranked other) and fit every pair from
-    /// each of its starts (not only the closest to the data and on sweeps its own
+    /// each of its starts (not only the closest to the data and, except on arms, its own
     /// search). Slower; for a diagnosis that ends with a lead a second effect may
     /// explain (docs/models.md, "Decision rule").
     #[arg(long)]

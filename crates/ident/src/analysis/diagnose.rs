@@ -1041,8 +1041,8 @@ fn bent_base(f: &Fitted, base: &Model) -> Option<(String, f64, &'static str)> {
 /// [`PAIR_CANDIDATES`]) fitted two at a time, and the best single with its screened
 /// partner and, on sweeps, with the best-ranked other; each pair from the start that
 /// simulates closest to the data among its own search of starting values and its two
-/// single fits with the other's effect added at its fitted values, and on sweeps from
-/// its own search too where that is not the closest; fitted on `coarse` (an arm's
+/// single fits with the other's effect added at its fitted values, and from its own
+/// search too where that is not the closest (not on arms: no search); fitted on `coarse` (an arm's
 /// coarse twin) when there is one, else on `prep`, and scored on `prep`. Returns the
 /// pairs as candidates scored against the baseline, best first, with their fits
 /// (finished at the chosen step by [`finish_pairs`] and refined by
@@ -1063,15 +1063,14 @@ fn pair_step(
 ) -> Vec<(Candidate, Option<Fitted>)> {
     let search = coarse.unwrap_or(prep);
     let catalog = |c: &Candidate| catalog_fit(parametric, &c.effect);
-    // The best-ranked partner and the pair's own search as a second start (below) are a
-    // sweep's only. On a specimen's data one relaxation cannot tell its laws apart, and
-    // both made the pairs of a ratchet with a stiffening rope tie with the pair in the
-    // data: from all their starts `nonlinear_creep` + `plastic_ratchet` reached the
-    // truth's 0.0117 on dyneema2 (none decisive with the gap between pairs then in use,
-    // and the creep table named alone; with the pairs' own gap, [`pair_verdict`], the
-    // truth leads by 48, not tried with these starts since), and the extra partner
-    // gave `plastic_ratchet` + `nonlinear_creep` 1.02x the floor beside the truth's
-    // 1.02x on vectran2 (nothing named); on arms they are untried.
+    // The best-ranked partner is a sweep's only. On a specimen's data one relaxation
+    // cannot tell its laws apart: it gave `plastic_ratchet` + `nonlinear_creep` 1.02x
+    // the floor beside the truth's 1.02x on a vectran2 relaxation holding a ratchet
+    // and a stiffening rope (nothing named; not re-run since the pairs' own gap,
+    // [`pair_verdict`]); on arms it is untried. The pair's own search as a second
+    // start (below) was a sweep's only too until the pairs' own gap: from all their
+    // starts the pairs of that ratchet with a stiffening rope on dyneema2 tied, the
+    // creep table was named alone, and with the own gap the truth leads by 48.
     let sweep = prep.kind == DataKind::SineSweep;
     let mut tops: Vec<&Fitted> = cands
         .iter()
@@ -1195,15 +1194,16 @@ fn pair_step(
             // then improved a coordinate at a time on the simulation
             let start =
                 scan_coordinates(search, &starts[best]).unwrap_or_else(|_| starts[best].clone());
-            // Fitted from there and, on sweeps, from the pair's own search (its start
-            // after the two singles') as well: a start's squared error need not tell
+            // Fitted from there and from the pair's own search (its starts after the
+            // two singles') as well: a start's squared error need not tell
             // its basin (the stiffening with damping on vectran2: from the start
             // closest to the data, the stiffening's single fit with the damping at
             // 2034 N*s, the pair stopped at NRMSE 0.480; from its own search,
-            // simulating farther, it reached the truth at 0.0260). In the exhaustive
-            // step from every other start. A start whose least squares joins a basin
-            // found before stops there.
-            let from_too = |&&i: &&usize| (all_pairs || (sweep && i >= 2)) && ssr[i].is_finite();
+            // simulating farther, it reached the truth at 0.0260; a saturating creep
+            // in two vectran2 relaxations, named at 1.01x the floor from it, a lead at
+            // 1.80x without). In the exhaustive step from every other start too. A start
+            // whose least squares joins a basin found before stops there.
+            let from_too = |&&i: &&usize| (all_pairs || i >= 2) && ssr[i].is_finite();
             let mut from = vec![start.clone()];
             from.extend(
                 order[1..]
@@ -1502,8 +1502,8 @@ pub struct DiagnoseOptions<'a> {
     /// The exhaustive pair step: when the pair step runs, the best single candidate is
     /// paired with every other candidate (not only the best few, the screened partner
     /// and on sweeps the best-ranked other), and every pair is fitted from each of its
-    /// starts (not only from the one that simulates closest to the data and on sweeps
-    /// from its own search). The decision rule is the same. Slower; for a diagnosis that ends with a
+    /// starts (not only from the one that simulates closest to the data and from its
+    /// own search). The decision rule is the same. Slower; for a diagnosis that ends with a
     /// lead a second effect may explain (docs/models.md, "Decision rule").
     pub all_pairs: bool,
 }
@@ -1856,7 +1856,7 @@ pub fn diagnose_with(
             }
             if pairs_tried {
                 l.why.push_str(
-                    " Pairs were tried with the best few single candidates, one screened partner (and on sweeps the best-ranked other), each from its start closest to the data (and on sweeps from its own search): a second effect that the first's error masks may not have been paired with it, or a pair's optimum not reached from there. The exhaustive pair step (`diagnose --all-pairs`) pairs the best single with every candidate, each pair from each of its starts (slower).",
+                    " Pairs were tried with the best few single candidates, one screened partner (and on sweeps the best-ranked other), each from its start closest to the data (and, except on arms, from its own search): a second effect that the first's error masks may not have been paired with it, or a pair's optimum not reached from there. The exhaustive pair step (`diagnose --all-pairs`) pairs the best single with every candidate, each pair from each of its starts (slower).",
                 );
             }
             lead = Some(l);
