@@ -1066,8 +1066,9 @@ fn pair_step(
     // The best-ranked partner is a sweep's only. On a specimen's data one relaxation
     // cannot tell its laws apart: it gave `plastic_ratchet` + `nonlinear_creep` 1.02x
     // the floor beside the truth's 1.02x on a vectran2 relaxation holding a ratchet
-    // and a stiffening rope (nothing named; not re-run since the pairs' own gap,
-    // [`pair_verdict`]); on arms it is untried. The pair's own search as a second
+    // and a stiffening rope, and nothing was named (re-run with the pairs' own gap,
+    // [`pair_verdict`], 2026-12-06: the same tie, and no other relaxation of the
+    // extended study gained from it); on arms it is untried. The pair's own search as a second
     // start (below) was a sweep's only too until the pairs' own gap: from all their
     // starts the pairs of that ratchet with a stiffening rope on dyneema2 tied, the
     // creep table was named alone, and with the own gap the truth leads by 48.
