@@ -303,6 +303,48 @@ pub struct FitResult {
     pub converged: bool,
     /// Why the optimiser stopped (human-readable).
     pub termination: String,
+    /// A fit made without intervals ([`FitOptions::intervals`] false): what
+    /// [`add_intervals`] needs to give it the intervals it would have had.
+    pub deferred: Option<Deferred>,
+}
+
+/// What a fit made without intervals keeps for [`add_intervals`]: its specs and the
+/// relative step of its differences.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Deferred {
+    specs: Vec<ParamSpec>,
+    diff_step: f64,
+}
+
+/// Gives a fit made without intervals ([`FitOptions::intervals`] false) the standard
+/// errors and intervals that the fit with them would have had, bit for bit: the same
+/// differences at the same optimum (`problem` the fit's own, or one that evaluates the
+/// same residuals). Nothing to do for a fit that has them.
+///
+/// For a search whose fits are mostly thrown away (the shape refinement's tables of
+/// every number of knots, of which one is kept), the Jacobian and the half-step
+/// evaluation at every discarded optimum are saved.
+pub fn add_intervals(problem: &dyn Residuals, result: &mut FitResult) -> Result<(), FitError> {
+    let Some(Deferred { specs, diff_step }) = result.deferred.take() else {
+        return Ok(());
+    };
+    let u = uncertainties(
+        problem,
+        &specs,
+        &result.values,
+        result.n_residuals,
+        diff_step,
+    )?;
+    result.std_errors = u.std_errors;
+    result.join_std_errors = u.join_std_errors;
+    result.correlation = u.correlation;
+    result.interval_95 = u.interval_95;
+    result.interval_clipped = u.clipped;
+    result.interval_shift = u.shift;
+    result.interval_method = u.method;
+    result.ssr = u.ssr;
+    result.evaluations += u.evaluations;
+    Ok(())
 }
 
 /// `v` moved strictly inside `[lower, upper]` (by a millionth of the span, or of `v`'s
@@ -966,6 +1008,10 @@ pub fn fit_joining(
         evaluations: target.evaluations.get() + u.evaluations,
         converged,
         termination,
+        deferred: (!opts.intervals).then(|| Deferred {
+            specs: params.to_vec(),
+            diff_step: opts.diff_step,
+        }),
     }))
 }
 

@@ -18,7 +18,8 @@ pub use dataset::{
 };
 pub use error::IdentError;
 pub use fitting::{
-    fit, fit_joining, FitError, FitOptions, FitResult, ParamSpec, ResidualError, Residuals,
+    add_intervals, fit, fit_joining, FitError, FitOptions, FitResult, ParamSpec, ResidualError,
+    Residuals,
 };
 pub use metrics::MetricsError;
 pub use sensors::{Encoder, GaussianNoise, SensorError, ENCODER_RESOLUTION_RAD};

@@ -720,8 +720,54 @@ pub fn fit_model_from_starts(
         .iter()
         .map(|m| m.fit_specs(n_runs).iter().map(|s| s.initial).collect())
         .collect();
-    let first = fit_once(&SimCache::new(prep, model), Start::Search, None, Some(xs))?;
-    or_from_defaults(prep, first)
+    let first = fit_once(
+        &SimCache::new(prep, model),
+        Start::Search,
+        None,
+        Some(xs),
+        Intervals::Now,
+    )?;
+    or_from_defaults(prep, first, Intervals::Now)
+}
+
+/// When a fit's 95% intervals are computed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Intervals {
+    /// At its optimum, as it ends.
+    Now,
+    /// Later, by [`with_intervals`], for the fit that is kept.
+    Deferred,
+}
+
+/// [`fit_model_from`] from the model's own values ([`Start::Own`]) without the 95%
+/// intervals: [`with_intervals`] gives the fit that is kept the intervals it would have
+/// had, bit for bit. For a search whose fits are mostly thrown away: the shape
+/// refinement fits a table of every number of knots and keeps one, and a fit's
+/// intervals cost a Jacobian and a simulation at half the step (on
+/// example_sweep_stiffening, the 2- and 4-knot tables' 8 simulations and 2 at half the
+/// step: 4% of the diagnosis's CPU, its output the same to the byte).
+pub fn fit_model_deferred(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, IdentError> {
+    let first = fit_once(
+        &SimCache::new(prep, model),
+        Start::Own,
+        None,
+        None,
+        Intervals::Deferred,
+    )?;
+    or_from_defaults(prep, first, Intervals::Deferred)
+}
+
+/// `f` with the 95% intervals of its fit when they were deferred
+/// ([`fit_model_deferred`]); unchanged otherwise. Its simulations at its values serve
+/// the differences' centre.
+pub fn with_intervals(prep: &Prepared<'_>, mut f: Fitted) -> Result<Fitted, IdentError> {
+    let Some(r) = f.fit.as_mut().filter(|r| r.deferred.is_some()) else {
+        return Ok(f);
+    };
+    let cache = SimCache::new(prep, &f.model);
+    cache.seed(&r.values, std::sync::Arc::new(f.sims.clone()));
+    crate::fitting::add_intervals(&Problem { cache: &cache }, r)?;
+    Ok(f)
 }
 
 /// [`fit_model_from`] where `model` was already simulated on `prep` (`sims`, as
@@ -733,13 +779,23 @@ pub(crate) fn fit_simulated(
     start: Start,
     sims: Option<Vec<Vec<f64>>>,
 ) -> Result<Fitted, IdentError> {
-    let first = fit_once(&SimCache::new(prep, model), start, sims, None)?;
-    or_from_defaults(prep, first)
+    let first = fit_once(
+        &SimCache::new(prep, model),
+        start,
+        sims,
+        None,
+        Intervals::Now,
+    )?;
+    or_from_defaults(prep, first, Intervals::Now)
 }
 
 /// `first`, or its fit again from its values on bounds reset to their effects'
 /// defaults when that is closer to the data ([`fit_model_from`]).
-fn or_from_defaults(prep: &Prepared<'_>, first: Fitted) -> Result<Fitted, IdentError> {
+fn or_from_defaults(
+    prep: &Prepared<'_>,
+    first: Fitted,
+    intervals: Intervals,
+) -> Result<Fitted, IdentError> {
     let Some(reset) = first.model.with_bound_values_reset(prep.runs.len()) else {
         return Ok(first);
     };
@@ -754,6 +810,7 @@ fn or_from_defaults(prep: &Prepared<'_>, first: Fitted) -> Result<Fitted, IdentE
         Start::Own,
         Some(reset_sims),
         None,
+        intervals,
     ) {
         Ok(again) if again.ssr < first.ssr => Ok(Fitted {
             nrmse_before: first.nrmse_before,
@@ -914,8 +971,14 @@ impl<'p, 'a> Staged<'p, 'a> {
 
     /// The second stage: the whole fit, [`fit_model`]'s.
     pub fn fit(self) -> Result<Fitted, IdentError> {
-        let first = fit_once(&self.cache, Start::Search, None, self.starts)?;
-        or_from_defaults(self.cache.prep, first)
+        let first = fit_once(
+            &self.cache,
+            Start::Search,
+            None,
+            self.starts,
+            Intervals::Now,
+        )?;
+        or_from_defaults(self.cache.prep, first, Intervals::Now)
     }
 }
 
@@ -926,6 +989,7 @@ fn fit_once(
     start: Start,
     sims: Option<Vec<Vec<f64>>>,
     searched: Option<Vec<Vec<f64>>>,
+    intervals: Intervals,
 ) -> Result<Fitted, IdentError> {
     let (prep, model) = (cache.prep, cache.model);
     let n_runs = prep.runs.len();
@@ -977,7 +1041,10 @@ fn fit_once(
         let (fitted_model, fit_res) = if specs.is_empty() {
             (model.clone(), None)
         } else {
-            let opts = fit_options(prep, model, specs.len());
+            let opts = FitOptions {
+                intervals: intervals == Intervals::Now,
+                ..fit_options(prep, model, specs.len())
+            };
             let problem = Problem { cache };
             match fit_joining(&problem, &specs, &opts, &known) {
                 // joined the basin of a start fitted before

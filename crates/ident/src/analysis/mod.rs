@@ -52,9 +52,9 @@ pub use diagnose::{
     MIN_SCORE, MIN_SCORE_GAP, NAME_MARGIN, PAIR_CANDIDATES, REFINE_MARGIN, SCREEN_RATIO,
 };
 pub use fit::{
-    fit_model, fit_model_from, fit_model_from_starts, scan_coordinates, screen_model,
-    searched_starts, Fitted, Staged, Start, ARM_EVALUATIONS_PER_PARAM, DEAR_EVALUATIONS_PER_PARAM,
-    SCREEN_JACOBIANS,
+    fit_model, fit_model_deferred, fit_model_from, fit_model_from_starts, scan_coordinates,
+    screen_model, searched_starts, with_intervals, Fitted, Staged, Start,
+    ARM_EVALUATIONS_PER_PARAM, DEAR_EVALUATIONS_PER_PARAM, SCREEN_JACOBIANS,
 };
 pub use joints::{moved_joints, split_per_joint, splittable, JointSplit, JointValues};
 pub use prepare::{

@@ -15,8 +15,10 @@
 //!   (`STALLED`).
 //! * **Fit**: every free parameter of the model together with the table's values, by
 //!   least squares on the simulation from the parametric fit's values
-//!   ([`fit_model_from`], [`Start::Own`]); a law that never falls is fitted through its
-//!   non-negative rises from knot to knot.
+//!   ([`fit_model_deferred`], the model's own values); a law that never falls is
+//!   fitted through its non-negative rises from knot to knot. Only the table kept gets
+//!   its 95% intervals ([`with_intervals`]: the same as if every fit had computed them,
+//!   bit for bit, without their Jacobians at the optima thrown away).
 //! * **How many knots**: the number the data chooses by the Bayesian information
 //!   criterion among `K` in [`KNOT_COUNTS`], tried in turn while it improves; the refinement is kept only when its BIC
 //!   beats the parametric law's by [`MIN_SCORE`].
@@ -28,7 +30,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::diagnose::MIN_SCORE;
-use super::fit::{fit_model_from, Fitted, Start};
+use super::fit::{fit_model_deferred, fit_model_from, with_intervals, Fitted, Start};
 use super::prepare::Prepared;
 use crate::error::IdentError;
 use crate::model::{Owner, ShapeUse};
@@ -256,7 +258,7 @@ pub fn refine_shape(
         };
         let sh = ShapeUse::new(effect, shape, knots, &y, true)?;
         let model = base.with_shape(e, sh);
-        let mut f = fit_model_from(prep, &model, Start::Own)?;
+        let mut f = fit_model_deferred(prep, &model)?;
         // A larger table that ends where the smaller one did (its least squares stayed
         // on the smaller table's curve, a stationary point it cannot leave: a convex
         // stiffening hidden in a relaxation, 4 knots at exactly the 2 knots' 1.11x the
@@ -264,7 +266,7 @@ pub fn refine_shape(
         if fits.last().is_some_and(|l| f.ssr >= STALLED * l.2.ssr) {
             // (a second start that fails leaves the first's fit)
             let sh = ShapeUse::new(effect, shape, knots, y0, true)?;
-            if let Ok(again) = fit_model_from(prep, &fitted.model.with_shape(e, sh), Start::Own) {
+            if let Ok(again) = fit_model_deferred(prep, &fitted.model.with_shape(e, sh)) {
                 if again.ssr < f.ssr {
                     f = again;
                 }
@@ -285,6 +287,8 @@ pub fn refine_shape(
     let Some((tried, best_bic, best_fit)) = best_of(fits) else {
         return Ok(None);
     };
+    // (the intervals of the table kept only: the others' are never read)
+    let best_fit = with_intervals(prep, best_fit)?;
     let score = bic_parametric - best_bic;
     let Some(refinement) = record(&best_fit, e, &values0, tried, fitted.nrmse, score, n_runs)?
     else {
@@ -407,6 +411,8 @@ pub fn refine_shapes_together(
     let Some((tried, best_bic, best_fit)) = best_of(fits) else {
         return Ok(None);
     };
+    // (the intervals of the table kept only: the others' are never read)
+    let best_fit = with_intervals(prep, best_fit)?;
     let score = bic_parametric - best_bic;
     let mut records = Vec::new();
     for (e, _, _, _, values0) in &starts {

@@ -1,9 +1,10 @@
 //! Bounded least squares: known answers, the paper's relaxation fit (eq. 6, 7), errors,
 //! and independence from the thread count.
 
+use longreach_ident::fitting::Clipped;
 use longreach_ident::{
-    fit, Dataset, DatasetKind, FitError, FitOptions, GaussianNoise, ParamSpec, ResidualError,
-    Residuals,
+    add_intervals, fit, Dataset, DatasetKind, FitError, FitOptions, GaussianNoise, ParamSpec,
+    ResidualError, Residuals,
 };
 
 /// y = a exp(-t / tau) + noise
@@ -42,6 +43,41 @@ fn decay_specs() -> Vec<ParamSpec> {
         ParamSpec::positive("a", "", 0.7, 0.0, f64::INFINITY),
         ParamSpec::positive("tau", "s", 0.4, 1e-3, 100.0),
     ]
+}
+
+/// A fit made without intervals and given them afterwards ([`add_intervals`]) ends as
+/// the fit that computed them: the same standard errors, intervals, correlations and
+/// evaluation count, bit for bit (here with `a` near its bound, clipped).
+#[test]
+fn intervals_added_after_a_fit_are_those_it_would_have_had() {
+    let problem = Decay::new(2.0, 1.5, 0.01, 7);
+    let mut specs = decay_specs();
+    // an upper bound just above the optimum: a's interval is clipped there
+    specs[0].upper = 1.999;
+    let now = fit(&problem, &specs, &FitOptions::default()).unwrap();
+    let mut later = fit(
+        &problem,
+        &specs,
+        &FitOptions {
+            intervals: false,
+            ..FitOptions::default()
+        },
+    )
+    .unwrap();
+    assert!(later.std_errors.iter().all(|s| s.is_nan()), "{later:?}");
+    assert_eq!(later.interval_method, "none");
+    add_intervals(&problem, &mut later).unwrap();
+    assert!(later.deferred.is_none());
+    assert!(now.std_errors.iter().all(|s| s.is_finite() && *s > 0.0));
+    assert!(
+        now.interval_clipped.iter().any(|c| *c != Clipped::No),
+        "{now:?}"
+    );
+    assert_eq!(format!("{now:?}"), format!("{later:?}"));
+    // a fit that has them is left as it is
+    let mut again = later.clone();
+    add_intervals(&problem, &mut again).unwrap();
+    assert_eq!(again, later);
 }
 
 #[test]

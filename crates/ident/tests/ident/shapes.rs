@@ -7,7 +7,8 @@ use std::path::PathBuf;
 use super::diagnose_loop::with_retardation;
 use longreach_drive::effects;
 use longreach_ident::analysis::{
-    diagnose, diagnose_with, DiagnoseOptions, Prepared, FLOOR_MARGIN, REFINE_MARGIN,
+    diagnose, diagnose_with, fit_model_deferred, fit_model_from, with_intervals, DiagnoseOptions,
+    Prepared, Start, FLOOR_MARGIN, REFINE_MARGIN,
 };
 use longreach_ident::model::{Model, ShapeUse};
 use longreach_ident::synth::{self, CyclicOptions};
@@ -112,6 +113,32 @@ fn shaped_model_files_round_trip_and_bad_tables_are_located() {
 /// names `nonlinear_stiffness`, its formula leaves the data above the floor, the table
 /// brings it to the floor with the truth inside its band, and on the written model a
 /// second `diagnose` finds nothing more.
+/// The shape refinement fits its tables without intervals and gives the one it keeps
+/// its intervals afterwards (`with_intervals`): they are the intervals of the fit that
+/// computes them as it ends, bit for bit (values, standard errors, band, the step-error
+/// centring), on a creep table fitted to the example relaxation.
+#[test]
+fn a_table_given_its_intervals_afterwards_has_those_of_the_fit() {
+    let (ds, base) = relax_base();
+    let m = creep_table(
+        &base,
+        &[0.0, 300.0, 700.0, 1500.0],
+        &[1.0, 1.5, 2.0, 2.2],
+        true,
+    );
+    let prep = Prepared::new(&ds).unwrap();
+    let now = fit_model_from(&prep, &m, Start::Own).unwrap();
+    let deferred = fit_model_deferred(&prep, &m).unwrap();
+    let r = deferred.fit.as_ref().unwrap();
+    assert!(r.std_errors.iter().all(|s| s.is_nan()), "{r:?}");
+    let later = with_intervals(&prep, deferred).unwrap();
+    let (a, b) = (now.fit.as_ref().unwrap(), later.fit.as_ref().unwrap());
+    assert!(a.std_errors.iter().all(|s| s.is_finite()), "{a:?}");
+    assert_eq!(format!("{a:?}"), format!("{b:?}"));
+    assert_eq!(now.ssr.to_bits(), later.ssr.to_bits());
+    assert_eq!(now.model.to_toml("t"), later.model.to_toml("t"));
+}
+
 #[test]
 fn a_stiffening_of_another_shape_is_refined_to_the_floor() {
     let (_, relax) = relax_base();
