@@ -1,7 +1,8 @@
 //! Steps the paper's rig with Dyneema2 four-element ropes (for profiling):
 //! `cargo run --release -p longreach-drive --example rig_steps -- 1000000`; a second
 //! argument gives the relay pulleys that friction coefficient (inertia 2e-5 kg*m^2, or
-//! `RIG_RELAY_INERTIA`); `RIG_DT_S` sets the step (1 ms). Prints the time and the
+//! `RIG_RELAY_INERTIA`); `RIG_DT_S` sets the step (1 ms), `RIG_STIFFENING_PER_N` a
+//! stiffening head spring (`nonlinear_stiffness`'s b, 1/N; 0). Prints the time and the
 //! Newton iterations per step (at 2.5 ms, a sweep dataset's step, 0.003 with 1e-7 or
 //! 2e-5 kg*m^2: 2.4 iterations, 2.9 us, where the ideal rig takes 0.15-0.19 us on
 //! the AMD EPYC family 23 machine).
@@ -15,7 +16,11 @@ fn main() {
         .and_then(|a| a.parse().ok())
         .unwrap_or(1_000_000);
     let params = Catalog::builtin().get("dyneema2").unwrap().clone();
-    let law = RopeLaw::from_params(&params, LawKind::FourElement).unwrap();
+    let mut law = RopeLaw::from_params(&params, LawKind::FourElement).unwrap();
+    law.stiffening_per_n = std::env::var("RIG_STIFFENING_PER_N")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0.0);
     let mut spec = RigSpec::paper("dyneema2", law, 0.05, 147.0);
     spec.relay_friction = std::env::args()
         .nth(2)
