@@ -983,7 +983,10 @@ impl<'p, 'a> Staged<'p, 'a> {
 }
 
 /// [`fit_simulated`] without the restart from the defaults, on `cache`'s model;
-/// `searched`: the starts [`starting_values`] gives it, when already found.
+/// `searched`: the starts [`starting_values`] gives it, when already found;
+/// `intervals`: when the fit's 95% intervals are computed ([`Intervals::Deferred`]
+/// only from the model's own values: with several starts, a later start's joining
+/// test reads the standard errors of the optima found before).
 fn fit_once(
     cache: &SimCache<'_, '_>,
     start: Start,
