@@ -411,8 +411,6 @@ pub fn refine_shapes_together(
     let Some((tried, best_bic, best_fit)) = best_of(fits) else {
         return Ok(None);
     };
-    // (the intervals of the table kept only: the others' are never read)
-    let best_fit = with_intervals(prep, best_fit)?;
     let score = bic_parametric - best_bic;
     let mut records = Vec::new();
     for (e, _, _, _, values0) in &starts {
