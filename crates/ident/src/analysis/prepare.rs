@@ -369,17 +369,17 @@ impl<'a> Prepared<'a> {
     pub fn residuals_of(&self, sims: &[Vec<f64>]) -> Vec<f64> {
         let mut out = Vec::with_capacity(self.n_samples());
         for (run, y) in self.runs.iter().zip(sims) {
-            let n = run.measured.len();
-            for k in 0..run.n_channels() {
-                let (w, m, y) = (run.weight(k), run.channel_values(k), &y[k * n..]);
-                if k == 0 {
-                    out.extend(run.idx.iter().map(|&i| y[i] - m[i]));
-                } else {
-                    out.extend(run.idx.iter().map(|&i| (y[i] - m[i]) * w));
-                }
-            }
+            run_residuals(run, y, &mut out);
         }
         out
+    }
+
+    /// [`Self::ssr`] of run `r` alone, `y` its stacked channels as
+    /// [`Self::simulate_run`] returns them.
+    pub fn run_ssr(&self, r: usize, y: &[f64]) -> f64 {
+        let mut out = Vec::new();
+        run_residuals(&self.runs[r], y, &mut out);
+        out.iter().map(|e| e * e).sum()
     }
 
     /// Residuals of the primary channel alone (model - measured), over the analysed
@@ -622,5 +622,19 @@ fn dt_of(t: &[f64]) -> f64 {
         1.0
     } else {
         (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64
+    }
+}
+
+/// The residuals of one run, appended to `out` as [`Prepared::residuals_of`] lists
+/// them: each stacked channel's `(model - measured) * weight` in turn.
+fn run_residuals(run: &RunData, y: &[f64], out: &mut Vec<f64>) {
+    let n = run.measured.len();
+    for k in 0..run.n_channels() {
+        let (w, m, y) = (run.weight(k), run.channel_values(k), &y[k * n..]);
+        if k == 0 {
+            out.extend(run.idx.iter().map(|&i| y[i] - m[i]));
+        } else {
+            out.extend(run.idx.iter().map(|&i| (y[i] - m[i]) * w));
+        }
     }
 }
