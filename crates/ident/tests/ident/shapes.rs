@@ -7,8 +7,8 @@ use std::path::PathBuf;
 use super::diagnose_loop::with_retardation;
 use longreach_drive::effects;
 use longreach_ident::analysis::{
-    diagnose, diagnose_with, fit_model_deferred, fit_model_from, with_intervals, DiagnoseOptions,
-    Prepared, Start, FLOOR_MARGIN, REFINE_MARGIN,
+    diagnose, diagnose_with, fit_model_deferred, fit_model_from, refine_shape, with_intervals,
+    DiagnoseOptions, Prepared, Start, FLOOR_MARGIN, REFINE_MARGIN,
 };
 use longreach_ident::model::{Model, ShapeUse};
 use longreach_ident::synth::{self, CyclicOptions};
@@ -422,4 +422,69 @@ fn a_second_pass_on_a_table_model_names_the_next_effect_with_the_table_free() {
         err(&fitted) < err(&off),
         "the table did not move towards the truth: {fitted:?} from {off:?}"
     );
+}
+
+/// A sweep's refinement tries 4 knots first, 7 while the criterion improves, and 2 (from
+/// the catalog law) only when the 4 knots beat the 7 (`SWEEP_FIRST_KNOTS`). A stiffness
+/// that rises linearly with tension (the catalog law itself) needs no more than 2
+/// knots: the 4 beat the 7, so the 2 are tried (and fit as well as the 4). A stiffness
+/// that saturates does not stop at 4: the 7 win, and the 2 are never fitted.
+#[test]
+fn a_sweep_refinement_starts_at_four_knots_and_goes_down_only_when_four_win() {
+    let effect = effects::find("nonlinear_stiffness").unwrap();
+    let base = super::new_effects::base();
+    let linear = {
+        let mut m = base.with_effect(effect);
+        m.effects[0].params[0].value = 2e-3;
+        m
+    };
+    let saturating = {
+        let sh = ShapeUse::new(
+            effect,
+            effect.shape().unwrap(),
+            &[0.0, 100.0, 250.0, 600.0],
+            &[1.0, 1.5, 1.8, 1.85],
+            false,
+        )
+        .unwrap();
+        base.with_effect(effect).with_shape(0, sh)
+    };
+    for (name, truth, seed) in [("linear", &linear, 61), ("saturating", &saturating, 62)] {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join(name);
+        synth::sweep(truth, &super::new_effects::three_runs(seed))
+            .unwrap()
+            .write(&path, name)
+            .unwrap();
+        let ds = Dataset::load(&path).unwrap();
+        let prep = Prepared::new(&ds).unwrap();
+        // the catalog law fitted from the truth's value (the linear) or its default
+        let fitted = fit_model_from(&prep, &linear, Start::Own).unwrap();
+        let (r, _) = refine_shape(&prep, &fitted, 0).unwrap().unwrap();
+        let tried: Vec<usize> = r.tried.iter().map(|k| k.knots).collect();
+        let bic = |k: usize| r.tried.iter().find(|t| t.knots == k).map(|t| t.bic);
+        println!("{name}: {:?}", r.tried);
+        let chosen = r.knots.len() - 1;
+        let best = r
+            .tried
+            .iter()
+            .min_by(|a, b| a.bic.total_cmp(&b.bic))
+            .unwrap()
+            .knots;
+        assert_eq!(chosen, best, "{name}: {:?}", r.tried);
+        match name {
+            "linear" => {
+                assert_eq!(tried, [2, 4, 7], "{:?}", r.tried);
+                assert!(bic(4) <= bic(7), "{:?}", r.tried);
+                // two knots hold a linear law as well as four (the criterion then
+                // chooses between them on the noise)
+                let nrmse = |i: usize| r.tried[i].nrmse;
+                assert!(nrmse(0) <= 1.001 * nrmse(1), "{:?}", r.tried);
+            }
+            _ => {
+                assert_eq!(tried, [4, 7], "{:?}", r.tried);
+                assert!(bic(7) < bic(4), "{:?}", r.tried);
+            }
+        }
+    }
 }
