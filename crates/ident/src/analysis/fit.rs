@@ -363,7 +363,7 @@ pub const HIDDEN_SCAN_SHARE: f64 = 0.5;
 /// most; the least squares that follows weighs every run. On a 5-run sweep,
 /// `relay_friction`'s scan of two axes on every run was 11 of its screen's 20
 /// simulations of the relay rig (a quarter of the diagnosis' CPU); on the two runs
-/// holding half the error, 4.4.
+/// holding half the error, its start's and 10 points on two runs cost 5.
 fn scan_runs(cache: &SimCache<'_, '_>, x: &[f64]) -> (Vec<usize>, f64) {
     let prep = cache.prep;
     let all: Vec<usize> = (0..prep.runs.len()).collect();
@@ -384,7 +384,7 @@ fn scan_runs(cache: &SimCache<'_, '_>, x: &[f64]) -> (Vec<usize>, f64) {
         }
     }
     runs.sort_unstable();
-    // (as `SimCache::ssr_on` sums it: over all runs, the full residuals' sum)
+    // (summed as `SimCache::ssr_on` sums it: on every run, as `SimCache::ssr` does)
     let cost = if runs.len() == prep.runs.len() {
         prep.ssr(&sims)
     } else {
