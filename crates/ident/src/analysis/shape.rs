@@ -27,7 +27,7 @@
 //! * **Band**: the 95% band of each knot's value from the fit's covariance (the sum
 //!   of the rises below it for a non-decreasing law), `1.96` standard errors.
 
-use longreach_drive::effects::{Effect, Shape};
+use longreach_drive::effects::{DataKind, Effect, Shape};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -234,7 +234,7 @@ pub fn refine_shape(
         .collect();
     // (a sweep starts at the middle count, and tries the smallest only when the middle
     // one beats the largest: `SWEEP_FIRST_KNOTS`)
-    let sweep = prep.kind == longreach_drive::effects::DataKind::SineSweep;
+    let sweep = prep.kind == DataKind::SineSweep;
     let first = if sweep { SWEEP_FIRST_KNOTS } else { 0 };
     let mut fits: Vec<(usize, f64, Fitted)> = Vec::new();
     for (knots, y0) in &tables[first..] {
