@@ -110,83 +110,6 @@ struct Problem<'c, 'p, 'a> {
     cache: &'c SimCache<'p, 'a>,
 }
 
-/// The least squares of `cache`'s model on some of the runs only (the lead-in of
-/// [`starting_values`]). The last few points' residuals are kept: the optimiser asks
-/// for the base point of every Jacobian again.
-struct OnRuns<'c, 'p, 'a> {
-    cache: &'c SimCache<'p, 'a>,
-    runs: &'c [usize],
-    kept: std::sync::Mutex<Vec<(Vec<u64>, std::sync::Arc<Vec<f64>>)>>,
-}
-
-/// Points whose residuals an [`OnRuns`] keeps.
-const ON_RUNS_KEPT: usize = 4;
-
-impl Residuals for OnRuns<'_, '_, '_> {
-    fn residuals(&self, params: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
-        let key: Vec<u64> = params.iter().map(|v| v.to_bits()).collect();
-        let hit = {
-            let kept = self.kept.lock().unwrap_or_else(|e| e.into_inner());
-            kept.iter().find(|(k, _)| *k == key).map(|(_, r)| r.clone())
-        };
-        let r = match hit {
-            Some(r) => r,
-            None => {
-                let prep = self.cache.prep;
-                let model = self.cache.model.with_values(params, prep.runs.len());
-                let sims: Vec<Vec<f64>> = self
-                    .runs
-                    .par_iter()
-                    .map(|&r| prep.simulate_run(&model, r))
-                    .collect::<Result<_, IdentError>>()?;
-                let mut all = Vec::new();
-                for (&r, y) in self.runs.iter().zip(&sims) {
-                    prep.extend_run_residuals(r, y, &mut all);
-                }
-                let all = std::sync::Arc::new(all);
-                let mut kept = self.kept.lock().unwrap_or_else(|e| e.into_inner());
-                if kept.len() >= ON_RUNS_KEPT {
-                    kept.remove(0);
-                }
-                kept.push((key, all.clone()));
-                all
-            }
-        };
-        out.clear();
-        out.extend_from_slice(&r);
-        Ok(())
-    }
-}
-
-/// Jacobians' worth of evaluations (`p + 2` each) of the lead-in of
-/// [`starting_values`]: a sweep's start whose hidden parameters were scanned on some
-/// runs moves by least squares on those runs before any fit or screen starts from it.
-pub const LEAD_IN_JACOBIANS: usize = SCREEN_JACOBIANS;
-
-/// `x0` moved by least squares of `cache`'s model on `runs` alone, for at most
-/// [`LEAD_IN_JACOBIANS`] Jacobians (`x0` itself where that fails).
-fn lead_in(cache: &SimCache<'_, '_>, x0: Vec<f64>, runs: &[usize]) -> Vec<f64> {
-    let (prep, model) = (cache.prep, cache.model);
-    let specs = fit_specs(prep, &model.with_values(&x0, prep.runs.len()));
-    if specs.is_empty() {
-        return x0;
-    }
-    let opts = FitOptions {
-        max_evaluations: LEAD_IN_JACOBIANS * (specs.len() + 2),
-        intervals: false,
-        ..fit_options(prep, model, specs.len())
-    };
-    let problem = OnRuns {
-        cache,
-        runs,
-        kept: std::sync::Mutex::new(Vec::new()),
-    };
-    match fit_joining(&problem, &specs, &opts, &[]) {
-        Ok(Some(r)) => r.values,
-        _ => x0,
-    }
-}
-
 impl Residuals for Problem<'_, '_, '_> {
     fn residuals(&self, params: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
         let sims = self.cache.simulate(params)?;
@@ -487,25 +410,19 @@ pub const SWEEP_STARTS: usize = 4;
 /// the time-domain simulation, one at a time along an axis of [`HIDDEN_SCAN_POINTS`]
 /// over the same range (the others at the
 /// analytic start, the hidden ones at their starting values until scanned), and the
-/// best point is kept. The scan weighs the runs that hold half of the start's error
-/// ([`HIDDEN_SCAN_SHARE`]); when those are not every run, the start is then led in by
-/// least squares on them ([`lead_in`], [`LEAD_IN_JACOBIANS`]): on the 5-run sweep of
-/// docs/models.md ("Where the time goes") `relay_friction`'s screen made 75 simulations
-/// of a run, 45 of them its least squares on every run (9 simulations of its 6x-dearer
-/// relay rig); led in on 2 runs and screened at that start, 51.
-fn starting_values(cache: &SimCache<'_, '_>, scan_hidden: bool) -> Result<Starts, IdentError> {
+/// best point is kept.
+fn starting_values(
+    cache: &SimCache<'_, '_>,
+    scan_hidden: bool,
+) -> Result<Vec<Vec<f64>>, IdentError> {
     let (prep, model) = (cache.prep, cache.model);
     let specs = model.fit_specs(prep.runs.len());
     let mut x0: Vec<f64> = specs.iter().map(|s| s.initial).collect();
     let slots = model.free_slots(prep.runs.len());
     let gridded = gridded_params(model, &slots, prep.kind);
     if gridded.is_empty() {
-        return Ok(Starts {
-            points: vec![x0],
-            led_in: false,
-        });
+        return Ok(vec![x0]);
     }
-    let mut led_in = false;
     let sweep = prep.kind == DataKind::SineSweep;
     let npts = if sweep { 9 } else { 5 };
     let axes: Vec<Vec<f64>> = gridded
@@ -678,12 +595,6 @@ fn starting_values(cache: &SimCache<'_, '_>, scan_hidden: bool) -> Result<Starts
                     }
                 }
             }
-            // The scan's runs hold most of the error: the start moves by least
-            // squares on them before a fit (or a screen) pays for every run.
-            if runs.len() < prep.runs.len() {
-                x0 = lead_in(cache, x0, &runs);
-                led_in = true;
-            }
         }
     } else {
         // Two settings of the base constants: the baseline's fitted ones (in `points`)
@@ -761,23 +672,9 @@ fn starting_values(cache: &SimCache<'_, '_>, scan_hidden: bool) -> Result<Starts
         if out.is_empty() {
             out.push(x0);
         }
-        return Ok(Starts {
-            points: out,
-            led_in,
-        });
+        return Ok(out);
     }
-    Ok(Starts {
-        points: vec![x0],
-        led_in,
-    })
-}
-
-/// What [`starting_values`] gives: the starts, and whether the first (a sweep's only
-/// one) was led in by least squares on the runs its hidden scan weighed
-/// ([`LEAD_IN_JACOBIANS`]).
-struct Starts {
-    points: Vec<Vec<f64>>,
-    led_in: bool,
+    Ok(vec![x0])
 }
 
 /// Scores `model` at its starting values without the time-domain refinement: the
@@ -788,7 +685,7 @@ struct Starts {
 /// all) are the dearest part of a diagnosis.
 pub fn screen_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, IdentError> {
     let cache = SimCache::new(prep, model);
-    let starts = starting_values(&cache, false)?.points;
+    let starts = starting_values(&cache, false)?;
     let scored: Vec<Result<(Model, Vec<Vec<f64>>, f64), IdentError>> = starts
         .par_iter()
         .map(|x| {
@@ -824,7 +721,6 @@ pub fn screen_model(prep: &Prepared<'_>, model: &Model) -> Result<Fitted, IdentE
 pub fn searched_starts(prep: &Prepared<'_>, model: &Model) -> Result<Vec<Model>, IdentError> {
     let cache = SimCache::new(prep, model);
     Ok(starting_values(&cache, true)?
-        .points
         .iter()
         .map(|x| model.with_values(x, prep.runs.len()))
         .collect())
@@ -1118,9 +1014,7 @@ impl<'p, 'a> Staged<'p, 'a> {
 
     /// The first stage: the model at the values its first start reaches after
     /// [`SCREEN_JACOBIANS`] Jacobians (or at that start when its least squares fails),
-    /// with `fit = None` (no intervals: a screen, not a fit). A start led in by least
-    /// squares on the runs of its hidden scan ([`starting_values`]) is the screen
-    /// itself: its least squares ran there.
+    /// with `fit = None` (no intervals: a screen, not a fit).
     pub fn screen(&mut self) -> Result<Fitted, IdentError> {
         let (prep, model) = (self.cache.prep, self.cache.model);
         let n_runs = prep.runs.len();
@@ -1128,15 +1022,12 @@ impl<'p, 'a> Staged<'p, 'a> {
         let sims0 = self.cache.simulate(&own)?;
         let (nrmse_before, noise_floor) = prep.overall(&sims0);
         let searched = starting_values(&self.cache, true)?;
-        let x0 = or_own(&self.cache, searched.points.clone(), own, prep.ssr(&sims0)).swap_remove(0);
-        // (a start led in on the runs that hold the error is the screen: its least
-        // squares ran there, where the full one would spend most of its runs' worth)
-        let led_in = searched.led_in && searched.points.first() == Some(&x0);
+        let x0 = or_own(&self.cache, searched.clone(), own, prep.ssr(&sims0)).swap_remove(0);
         // (the second stage chooses among them as `fit_once` does)
-        self.starts = Some(searched.points);
+        self.starts = Some(searched);
         let specs = fit_specs(prep, &model.with_values(&x0, n_runs));
         let mut values = x0;
-        if !specs.is_empty() && !led_in {
+        if !specs.is_empty() {
             // the least squares of `fit_once`'s first start, stopped early: the same path
             let opts = FitOptions {
                 max_evaluations: SCREEN_JACOBIANS * (specs.len() + 2),
@@ -1214,7 +1105,7 @@ fn fit_once(
     let starts = match (start, searched) {
         (Start::Own, _) => vec![own.clone()],
         (Start::Search, Some(found)) => found,
-        (Start::Search, None) => starting_values(cache, true)?.points,
+        (Start::Search, None) => starting_values(cache, true)?,
     };
     let starts = or_own(cache, starts, own, prep.ssr(&sims0));
     let mut best: Option<(Model, Option<FitResult>, f64)> = None;
@@ -1403,74 +1294,5 @@ mod tests {
         }
         assert_eq!(cost.to_bits(), cache.ssr_on(&x, &runs).to_bits());
         assert_eq!(cost.to_bits(), held.to_bits());
-    }
-
-    /// The lead-in of a start whose hidden parameters were scanned on some runs
-    /// (`relay_friction` on example_sweep_stiffening: its coefficient and inertia, which
-    /// the analytic response cannot see): the least squares on those runs gives the
-    /// runs' own residuals (their squares sum to `ssr_on`) and lowers their squared
-    /// error; the search of starting values says its start was led in; and a screen
-    /// that starts there is that start, simulated on every run, without a least squares
-    /// of its own.
-    #[test]
-    fn a_start_scanned_on_some_runs_is_led_in_there_and_screened_as_it_is() {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../data/examples/example_sweep_stiffening");
-        let ds = Dataset::load(&dir).unwrap();
-        let prep = Prepared::new(&ds).unwrap();
-        let model = Model::baseline(&ds)
-            .unwrap()
-            .with_effect(effects::find("relay_friction").unwrap());
-        let cache = SimCache::new(&prep, &model);
-        let own: Vec<f64> = model
-            .fit_specs(prep.runs.len())
-            .iter()
-            .map(|s| s.initial)
-            .collect();
-        let (runs, cost) = scan_runs(&cache, &own);
-        assert!(runs.len() < prep.runs.len(), "{runs:?}");
-        let led = lead_in(&cache, own.clone(), &runs);
-        let problem = OnRuns {
-            cache: &cache,
-            runs: &runs,
-            kept: std::sync::Mutex::new(Vec::new()),
-        };
-        let mut r = Vec::new();
-        problem.residuals(&led, &mut r).unwrap();
-        let on_runs: f64 = r.iter().map(|v| v * v).sum();
-        let ssr_on = cache.ssr_on(&led, &runs);
-        assert!(
-            (on_runs - ssr_on).abs() <= 1e-12 * ssr_on,
-            "{on_runs} vs {ssr_on}"
-        );
-        assert!(ssr_on < 0.9 * cost, "led in {ssr_on}, from {cost}");
-
-        let searched = starting_values(&cache, true).unwrap();
-        assert!(searched.led_in);
-        assert_eq!(searched.points.len(), 1);
-        let mut stage = Staged::new(&prep, &model);
-        let screen = stage.screen().unwrap();
-        let start = &stage.starts.as_ref().unwrap()[0];
-        assert_eq!(
-            start.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
-            searched.points[0]
-                .iter()
-                .map(|v| v.to_bits())
-                .collect::<Vec<_>>()
-        );
-        let at_start = cache.ssr(start);
-        // (the model's own values were not closer to the data: the screen is the start)
-        assert!(at_start <= cache.ssr(&own), "{at_start}");
-        let bits = |m: &Model| -> Vec<u64> {
-            m.fit_specs(prep.runs.len())
-                .iter()
-                .map(|s| s.initial.to_bits())
-                .collect()
-        };
-        assert_eq!(
-            bits(&screen.model),
-            bits(&model.with_values(start, prep.runs.len()))
-        );
-        assert_eq!(screen.ssr.to_bits(), at_start.to_bits());
     }
 }

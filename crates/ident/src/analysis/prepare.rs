@@ -374,12 +374,6 @@ impl<'a> Prepared<'a> {
         out
     }
 
-    /// The residuals of run `r` alone, as [`Self::residuals_of`] orders them, appended
-    /// to `out` (`y` its stacked channels as [`Self::simulate_run`] returns them).
-    pub fn extend_run_residuals(&self, r: usize, y: &[f64], out: &mut Vec<f64>) {
-        run_residuals(&self.runs[r], y, out);
-    }
-
     /// [`Self::ssr`] of run `r` alone, `y` its stacked channels as
     /// [`Self::simulate_run`] returns them.
     pub fn run_ssr(&self, r: usize, y: &[f64]) -> f64 {
