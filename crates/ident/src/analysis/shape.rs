@@ -35,7 +35,7 @@ use super::diagnose::MIN_SCORE;
 use super::fit::{fit_model_deferred, fit_model_from, with_intervals, Fitted, Start};
 use super::prepare::Prepared;
 use crate::error::IdentError;
-use crate::model::{Owner, ShapeUse};
+use crate::model::{Model, Owner, ShapeUse};
 
 /// A larger table whose fit ends with at least this share of the smaller table's
 /// squared error has stalled on the smaller one's curve and is fitted again from the
@@ -236,6 +236,14 @@ pub fn refine_shape(
     // one beats the largest: `SWEEP_FIRST_KNOTS`)
     let sweep = prep.kind == DataKind::SineSweep;
     let first = if sweep { SWEEP_FIRST_KNOTS } else { 0 };
+    // The model with a table at `knots` holding the catalog law's values `y0` there (a
+    // fit's start), and the BIC of a fit.
+    let from_catalog = |knots: &[f64], y0: &[f64]| -> Result<Model, IdentError> {
+        Ok(fitted
+            .model
+            .with_shape(e, ShapeUse::new(effect, shape, knots, y0, true)?))
+    };
+    let scored = |f: &Fitted| bic(f.ssr, f.model.fit_specs(n_runs).len(), n);
     let mut fits: Vec<(usize, f64, Fitted)> = Vec::new();
     for (knots, y0) in &tables[first..] {
         // From the previous number of knots' fit where there is one: its table at the
@@ -281,16 +289,14 @@ pub fn refine_shape(
         // floor) is fitted again from the catalog law at its knots, the better kept.
         if fits.last().is_some_and(|l| f.ssr >= STALLED * l.2.ssr) {
             // (a second start that fails leaves the first's fit)
-            let sh = ShapeUse::new(effect, shape, knots, y0, true)?;
-            if let Ok(again) = fit_model_deferred(prep, &fitted.model.with_shape(e, sh)) {
+            if let Ok(again) = fit_model_deferred(prep, &from_catalog(knots, y0)?) {
                 if again.ssr < f.ssr {
                     f = again;
                 }
             }
         }
 
-        let p = f.model.fit_specs(n_runs).len();
-        let b = bic(f.ssr, p, n);
+        let b = scored(&f);
         // more knots only while the criterion improves; a larger table that fits worse
         // than the smaller one (it holds nearly the smaller's law: its fit stopped
         // short) does not end the search
@@ -307,10 +313,8 @@ pub fn refine_shape(
         if best != Some(0) {
             break;
         }
-        let sh = ShapeUse::new(effect, shape, knots, y0, true)?;
-        let f = fit_model_deferred(prep, &fitted.model.with_shape(e, sh))?;
-        let b = bic(f.ssr, f.model.fit_specs(n_runs).len(), n);
-        fits.insert(0, (knots.len() - 1, b, f));
+        let f = fit_model_deferred(prep, &from_catalog(knots, y0)?)?;
+        fits.insert(0, (knots.len() - 1, scored(&f), f));
     }
     let Some((tried, best_bic, best_fit)) = best_of(fits) else {
         return Ok(None);
