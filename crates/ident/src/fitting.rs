@@ -167,6 +167,24 @@ pub trait Residuals: Sync {
     ) -> Result<bool, ResidualError> {
         Ok(false)
     }
+
+    /// The residuals at `params`, which differ from `base` in parameter `j` alone (a
+    /// forward difference), when the problem can take some of them from
+    /// `base_residuals`, its residuals at `base`: a block that parameter cannot change
+    /// there (a run whose simulation never reaches the stretch of a table that value
+    /// moves) need not be evaluated again. Writes every residual, [`Self::residuals`]'s
+    /// at `params` to the bit, into `out` and returns `Ok(true)`; `Ok(false)` (the
+    /// default): the caller evaluates [`Self::residuals`].
+    fn residuals_beside(
+        &self,
+        _base: &[f64],
+        _base_residuals: &[f64],
+        _j: usize,
+        _params: &[f64],
+        _out: &mut Vec<f64>,
+    ) -> Result<bool, ResidualError> {
+        Ok(false)
+    }
 }
 
 /// One parameter to fit.
@@ -628,13 +646,33 @@ fn evaluate(
     x: &[f64],
     expected: Option<usize>,
 ) -> Result<Vec<f64>, FitError> {
+    evaluate_beside(problem, specs, x, expected, None)
+}
+
+/// [`evaluate`]; with `beside = Some((base, base_residuals, j))`, `x` differs from
+/// `base` in parameter `j` alone and the problem may take the residuals it cannot
+/// change from `base_residuals` ([`Residuals::residuals_beside`]).
+fn evaluate_beside(
+    problem: &dyn Residuals,
+    specs: &[ParamSpec],
+    x: &[f64],
+    expected: Option<usize>,
+    beside: Option<(&[f64], &[f64], usize)>,
+) -> Result<Vec<f64>, FitError> {
     let mut out = Vec::with_capacity(expected.unwrap_or(0));
-    problem
-        .residuals(x, &mut out)
-        .map_err(|e| FitError::Model {
-            message: e.to_string(),
-            params: format_params(specs, x),
-        })?;
+    let model_error = |e: ResidualError| FitError::Model {
+        message: e.to_string(),
+        params: format_params(specs, x),
+    };
+    let done = match beside {
+        Some((base, r0, j)) => problem
+            .residuals_beside(base, r0, j, x, &mut out)
+            .map_err(model_error)?,
+        None => false,
+    };
+    if !done {
+        problem.residuals(x, &mut out).map_err(model_error)?;
+    }
     if let Some(n) = expected {
         if out.len() != n {
             return Err(FitError::ResidualCount {
@@ -655,8 +693,11 @@ fn evaluate(
 }
 
 /// One-sided differences: the residuals at `x` and, for every column `j`, the slope
-/// `(r(point(j, h_j)) - r(x)) / h_j` with `h_j = steps[j]`, all evaluated in parallel
-/// and combined in a fixed order. A column whose point the model cannot evaluate is
+/// `(r(point(j, h_j)) - r(x)) / h_j` with `h_j = steps[j]`: `r(x)` first (usually
+/// known: the point the optimiser accepted last), then the columns' points in parallel,
+/// each taking from `r(x)` the residuals it cannot change when the problem knows them
+/// ([`Residuals::residuals_beside`]; the same bits), combined in a fixed order. A
+/// column whose point the model cannot evaluate is
 /// taken the other way (`-h_j`); an error only when both fail (or `x` does). Returns
 /// `(r(x), columns, evaluations beyond p + 1)`.
 #[allow(clippy::type_complexity)]
@@ -669,14 +710,15 @@ fn differences(
     n: usize,
 ) -> Result<(Vec<f64>, Vec<Vec<f64>>, usize), FitError> {
     let p = steps.len();
-    let points: Vec<Vec<f64>> = std::iter::once(x.to_vec())
-        .chain((0..p).map(|j| point(j, steps[j])))
+    // (the centre first: the columns may take from it what they cannot change)
+    let r0 = evaluate(problem, specs, x, Some(n))?;
+    let results: Vec<Result<Vec<f64>, FitError>> = (0..p)
+        .into_par_iter()
+        .map(|j| {
+            let xj = point(j, steps[j]);
+            evaluate_beside(problem, specs, &xj, Some(n), Some((x, &r0, j)))
+        })
         .collect();
-    let mut results: Vec<Result<Vec<f64>, FitError>> = points
-        .par_iter()
-        .map(|x| evaluate(problem, specs, x, Some(n)))
-        .collect();
-    let r0 = results.remove(0)?;
     let mut extra = 0;
     let mut cols = Vec::with_capacity(p);
     for (j, r) in results.into_iter().enumerate() {

@@ -2,7 +2,7 @@
 //! sweeps scored and refined on the analytic frequency response), least squares on the
 //! time-domain simulation, and the screening of a model at its starting values alone.
 
-use longreach_drive::effects::DataKind;
+use longreach_drive::effects::{Argument, DataKind};
 use num_complex::Complex64;
 use rayon::prelude::*;
 
@@ -13,7 +13,7 @@ use crate::error::IdentError;
 use crate::fitting::{
     fit, fit_joining, FitOptions, FitResult, ParamSpec, ResidualError, Residuals,
 };
-use crate::model::Model;
+use crate::model::{Model, Owner};
 use crate::sim;
 
 /// Most bytes of simulated channels a [`SimCache`] keeps (for an arm dataset of four
@@ -28,18 +28,92 @@ const SIM_CACHE_BYTES: usize = 32 << 20;
 /// result), and a simulation is deterministic, so a point simulated once is reused
 /// bit for bit whatever the threads. Least recently used points go first past
 /// [`SIM_CACHE_BYTES`]; errors are not kept.
+///
+/// It also knows which runs a free value cannot change ([`Self::unchanged_runs`]): a
+/// per-run value changes its run alone, and a value of a shape-free table changes the
+/// law above the knot before its own only (a rise at knot `k` moves every value from
+/// `k` up; a value, the segments on either side of `k`): a run whose simulation never
+/// took the law's argument above that knot is the same to the bit. The plant bounds
+/// the argument as it simulates ([`crate::plant::Plant::simulate_bounded`]); the
+/// bounds of every point simulated here are kept (a few numbers each).
 struct SimCache<'p, 'a> {
     prep: &'p Prepared<'a>,
     model: &'p Model,
     entries: std::sync::Mutex<Vec<(Vec<u64>, std::sync::Arc<Vec<Vec<f64>>>)>>,
+    /// The argument of the model's free tables, when they share one and act
+    /// everywhere (not restricted to some of an arm's joints).
+    argument: Option<Argument>,
+    /// What each free value can change.
+    reach: Vec<Reach>,
+    /// Every run's bound on `argument` at the points simulated, by the bits of the point.
+    bounds: std::sync::Mutex<Vec<(Vec<u64>, Vec<Option<f64>>)>>,
+}
+
+/// The runs a free value can change ([`SimCache::unchanged_runs`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Reach {
+    /// Every run.
+    All,
+    /// Run `r` alone (a per-run value).
+    Run(usize),
+    /// The runs whose table argument went above this knot (a table's value).
+    Above(f64),
 }
 
 impl<'p, 'a> SimCache<'p, 'a> {
     fn new(prep: &'p Prepared<'a>, model: &'p Model) -> Self {
+        let slots = model.free_slots(prep.runs.len());
+        let mut arguments = slots.iter().filter_map(|s| match s.owner {
+            Owner::Shape(e) => model.effects[e]
+                .shape
+                .as_ref()
+                .map(|sh| (model.effects[e].at.is_none()).then_some(sh.shape.argument)),
+            _ => None,
+        });
+        let first = arguments.next().flatten();
+        let argument = first.filter(|a| arguments.all(|b| b == Some(*a)));
+        let reach = slots
+            .iter()
+            .map(|s| match (s.run, s.owner) {
+                (Some(r), _) => Reach::Run(r),
+                (None, Owner::Shape(e)) if argument.is_some() => {
+                    let Some(sh) = model.effects[e].shape.as_ref() else {
+                        return Reach::All;
+                    };
+                    // (the first parameter is knot 0's value unless the shape fixes it)
+                    let k = s.index + usize::from(sh.shape.value_at_zero.is_some());
+                    match k.checked_sub(1).and_then(|i| sh.knots.get(i)) {
+                        Some(&below) if below > 0.0 => Reach::Above(below),
+                        _ => Reach::All,
+                    }
+                }
+                _ => Reach::All,
+            })
+            .collect();
         Self {
             prep,
             model,
             entries: std::sync::Mutex::new(Vec::new()),
+            argument,
+            reach,
+            bounds: std::sync::Mutex::new(Vec::new()),
+        }
+    }
+
+    /// The runs free value `j` cannot change at the free values `base` (per run, true
+    /// where it cannot); `None` when it may change every run, or when `base` was not
+    /// simulated here with bounds.
+    fn unchanged_runs(&self, base: &[f64], j: usize) -> Option<Vec<bool>> {
+        let n = self.prep.runs.len();
+        match *self.reach.get(j)? {
+            Reach::All => None,
+            Reach::Run(r) => Some((0..n).map(|q| q != r).collect()),
+            Reach::Above(knot) => {
+                let key: Vec<u64> = base.iter().map(|v| v.to_bits()).collect();
+                let bounds = self.bounds.lock().unwrap_or_else(|e| e.into_inner());
+                let (_, b) = bounds.iter().find(|(k, _)| *k == key)?;
+                Some(b.iter().map(|b| b.is_some_and(|b| b < knot)).collect())
+            }
         }
     }
 
@@ -65,10 +139,23 @@ impl<'p, 'a> SimCache<'p, 'a> {
                 return Ok(sims);
             }
         }
-        let sims = std::sync::Arc::new(
-            self.prep
-                .simulate(&self.model.with_values(x, self.prep.runs.len()))?,
-        );
+        let model = self.model.with_values(x, self.prep.runs.len());
+        let sims = std::sync::Arc::new(match self.argument {
+            None => self.prep.simulate(&model)?,
+            Some(arg) => {
+                let (sims, bounds): (Vec<Vec<f64>>, Vec<Option<f64>>) = (0..self.prep.runs.len())
+                    .into_par_iter()
+                    .map(|r| self.prep.simulate_run_bounded(&model, r, arg))
+                    .collect::<Result<Vec<_>, IdentError>>()?
+                    .into_iter()
+                    .unzip();
+                let mut kept = self.bounds.lock().unwrap_or_else(|e| e.into_inner());
+                if !kept.iter().any(|(k, _)| *k == key) {
+                    kept.push((key.clone(), bounds));
+                }
+                sims
+            }
+        });
         let bytes = |s: &Vec<Vec<f64>>| 8 * s.iter().map(Vec::len).sum::<usize>();
         let mut entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
         if !entries.iter().any(|(k, _)| *k == key) {
@@ -124,6 +211,41 @@ impl Residuals for Problem<'_, '_, '_> {
     fn joins_on_independent_errors(&self) -> bool {
         // (an arm's starts join as they did before its errors were grouped)
         self.cache.prep.kind == DataKind::ArmMoves
+    }
+
+    fn residuals_beside(
+        &self,
+        base: &[f64],
+        base_residuals: &[f64],
+        j: usize,
+        params: &[f64],
+        out: &mut Vec<f64>,
+    ) -> Result<bool, ResidualError> {
+        let cache = self.cache;
+        let Some(unchanged) = cache.unchanged_runs(base, j).filter(|u| u.contains(&true)) else {
+            return Ok(false);
+        };
+        let prep = cache.prep;
+        let model = cache.model.with_values(params, prep.runs.len());
+        let sims: Vec<Option<Vec<f64>>> = (0..prep.runs.len())
+            .into_par_iter()
+            .map(|r| {
+                (!unchanged[r])
+                    .then(|| prep.simulate_run(&model, r))
+                    .transpose()
+            })
+            .collect::<Result<_, IdentError>>()?;
+        out.clear();
+        let mut at = 0;
+        for (r, y) in sims.iter().enumerate() {
+            let len = prep.run_residual_count(r);
+            match y {
+                Some(y) => prep.run_residuals_into(r, y, out),
+                None => out.extend_from_slice(&base_residuals[at..at + len]),
+            }
+            at += len;
+        }
+        Ok(true)
     }
 
     fn refined_residuals(&self, params: &[f64], out: &mut Vec<f64>) -> Result<bool, ResidualError> {
@@ -1173,7 +1295,7 @@ fn fit_once(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::{BaseParam, ParamDef, Slot};
+    use crate::model::{BaseParam, ParamDef, ShapeUse, Slot};
     use crate::{Dataset, DatasetKind, RelaxationDataset, RelaxationSpecimen};
     use longreach_drive::effects;
 
@@ -1294,5 +1416,67 @@ mod tests {
         }
         assert_eq!(cost.to_bits(), cache.ssr_on(&x, &runs).to_bits());
         assert_eq!(cost.to_bits(), held.to_bits());
+    }
+
+    /// A forward difference in a value of a stiffness table takes the runs whose
+    /// tension never went above the knot before that value from the centre's residuals,
+    /// and what it gives is the full evaluation's to the bit: those runs were the same.
+    /// The runs taken are those the plant's bound puts below the knot, and a run the
+    /// value does change is simulated again (the top knot's rise moves the 590 N run).
+    #[test]
+    fn a_table_value_leaves_the_runs_below_its_knot_as_they_were() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../data/examples/example_sweep_stiffening");
+        let ds = Dataset::load(&dir).unwrap();
+        let prep = Prepared::new(&ds).unwrap();
+        let effect = effects::find("nonlinear_stiffness").unwrap();
+        let knots = [0.0, 150.0, 300.0, 450.0, 600.0];
+        let sh = ShapeUse::new(
+            effect,
+            effect.shape().unwrap(),
+            &knots,
+            &[1.0, 1.3, 1.5, 1.6, 1.7],
+            true,
+        )
+        .unwrap();
+        let model = Model::baseline(&ds)
+            .unwrap()
+            .with_effect(effect)
+            .with_shape(0, sh);
+        let cache = SimCache::new(&prep, &model);
+        assert_eq!(cache.argument, Some(Argument::TensionN));
+        let problem = Problem { cache: &cache };
+        let specs = model.fit_specs(prep.runs.len());
+        let x: Vec<f64> = specs.iter().map(|s| s.initial).collect();
+        let mut r0 = Vec::new();
+        problem.residuals(&x, &mut r0).unwrap();
+        let bounds = cache.bounds.lock().unwrap()[0].1.clone();
+        assert!(bounds.iter().all(Option::is_some), "{bounds:?}");
+        let mut taken = 0;
+        for (j, slot) in model.free_slots(prep.runs.len()).iter().enumerate() {
+            let mut xj = x.clone();
+            xj[j] += 1e-3 * xj[j].abs().max(1.0);
+            let mut full = Vec::new();
+            problem.residuals(&xj, &mut full).unwrap();
+            let mut beside = Vec::new();
+            let used = problem
+                .residuals_beside(&x, &r0, j, &xj, &mut beside)
+                .unwrap();
+            // (the rises follow the fixed value at 0: the rise at knot index + 1)
+            let below = match slot.owner {
+                Owner::Shape(_) => knots[slot.index],
+                _ => 0.0,
+            };
+            let expected: Vec<bool> = bounds.iter().map(|b| b.unwrap() < below).collect();
+            assert_eq!(used, expected.contains(&true), "value {j}: {bounds:?}");
+            if used {
+                taken += expected.iter().filter(|u| **u).count();
+                assert_eq!(cache.unchanged_runs(&x, j), Some(expected));
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&beside), bits(&full), "value {j}");
+            }
+        }
+        // the 100 N run below 150 N, the 100 and 296 N runs below 300 N, ...
+        assert!(taken >= 3, "{taken} runs taken, bounds {bounds:?}");
     }
 }

@@ -12,7 +12,7 @@
 //! squares, RMS errors and the noise floor in the primary's unit (the floor's SSR is
 //! `sigma_primary^2` per stacked residual).
 
-use longreach_drive::effects::DataKind;
+use longreach_drive::effects::{Argument, DataKind};
 use rayon::prelude::*;
 
 use crate::dataset::{Dataset, DatasetKind};
@@ -321,6 +321,31 @@ impl<'a> Prepared<'a> {
     pub fn simulate_run(&self, model: &Model, r: usize) -> Result<Vec<f64>, IdentError> {
         let params = model.plant_params(r)?;
         self.stacked(r, self.plant.simulate(&params, r)?)
+    }
+
+    /// [`Self::simulate_run`], and the plant's bound on the values the argument `arg`
+    /// of a shape-free law took in that simulation ([`crate::plant::Plant::simulate_bounded`]).
+    pub(crate) fn simulate_run_bounded(
+        &self,
+        model: &Model,
+        r: usize,
+        arg: Argument,
+    ) -> Result<(Vec<f64>, Option<f64>), IdentError> {
+        let params = model.plant_params(r)?;
+        let (channels, bound) = self.plant.simulate_bounded(&params, r, arg)?;
+        Ok((self.stacked(r, channels)?, bound))
+    }
+
+    /// The residuals of run `r` alone (`y` its stacked channels): its part of
+    /// [`Self::residuals_of`], appended to `out`.
+    pub(crate) fn run_residuals_into(&self, r: usize, y: &[f64], out: &mut Vec<f64>) {
+        run_residuals(&self.runs[r], y, out);
+    }
+
+    /// Number of residuals of run `r` ([`Self::residuals_of`] puts them one run after
+    /// another).
+    pub(crate) fn run_residual_count(&self, r: usize) -> usize {
+        self.runs[r].idx.len() * self.runs[r].n_channels()
     }
 
     /// The plant's channels of run `r` in the order of its stacked channels,

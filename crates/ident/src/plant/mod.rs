@@ -18,7 +18,7 @@
 
 use std::borrow::Cow;
 
-use longreach_drive::effects::{Argument, DataKind};
+use longreach_drive::effects::{Argument, DataKind, Site};
 use longreach_drive::{rig_transfer, RigSpec as DriveRig};
 use num_complex::Complex64;
 
@@ -91,6 +91,21 @@ pub trait Plant: Send + Sync + std::fmt::Debug {
     /// value per sample, the compared channel first.
     fn simulate(&self, params: &PlantParams, run: usize) -> Result<Channels, IdentError>;
 
+    /// [`Self::simulate`] (the same channels, to the bit), and a bound on the values
+    /// the argument `arg` of a shape-free law took wherever that simulation evaluated
+    /// the law: `Some(top)` when none exceeded `top`, `None` (the default) when the
+    /// plant cannot bound them. A table of the law changed only above `top` leaves the
+    /// run's simulation unchanged to the bit, so a forward difference in such a table
+    /// value need not simulate the run again (`SimCache` in `analysis::fit`).
+    fn simulate_bounded(
+        &self,
+        params: &PlantParams,
+        run: usize,
+        _arg: Argument,
+    ) -> Result<(Channels, Option<f64>), IdentError> {
+        Ok((self.simulate(params, run)?, None))
+    }
+
     /// The plant's small-signal response (compared channel over input) of run `run`
     /// at `frequency_hz`, when it has a closed form (eqs. 12-13 for the rig): fits use
     /// it to start. `None`: no closed form.
@@ -162,6 +177,36 @@ impl RigPlant<'_> {
         })
     }
 
+    /// The channels the run measured, from the rig's simulation `s` of it.
+    fn channels(
+        &self,
+        params: &PlantParams,
+        run: usize,
+        s: sim::SimSweep,
+    ) -> Result<Channels, IdentError> {
+        let r = &self.sweep.runs[run];
+        let mut out = vec![Channel {
+            name: "output_angle_rad".into(),
+            values: s.output_rad,
+        }];
+        for (name, measured, values) in [
+            ("tension_in_1_n", &r.tension_in_1_n, s.tension_in_1_n),
+            ("tension_in_2_n", &r.tension_in_2_n, s.tension_in_2_n),
+            ("tension_out_1_n", &r.tension_out_1_n, s.tension_1_n),
+            ("tension_out_2_n", &r.tension_out_2_n, s.tension_2_n),
+        ] {
+            if measured.is_some() {
+                out.push(Channel {
+                    name: name.into(),
+                    values,
+                });
+            }
+        }
+        let mut channels = Channels(out);
+        apply_sensors(params, &r.time_s, &mut channels)?;
+        Ok(channels)
+    }
+
     fn rig(&self, params: &PlantParams, run: usize) -> DriveRig {
         let mut spec = sim::drive_rig(
             &self.sweep.rig,
@@ -185,28 +230,28 @@ impl Plant for RigPlant<'_> {
     }
 
     fn simulate(&self, params: &PlantParams, run: usize) -> Result<Channels, IdentError> {
-        let r = &self.sweep.runs[run];
+        self.channels(params, run, self.sweep_sim(params, run)?)
+    }
+
+    /// Tension (the rope law's argument): the rig's two ropes are each one span when
+    /// nothing splits them (no relay friction, no effect on the spans or the relays),
+    /// and their tensions at every sample bound every evaluation of the law once
+    /// widened ([`bound_of`]).
+    fn simulate_bounded(
+        &self,
+        params: &PlantParams,
+        run: usize,
+        arg: Argument,
+    ) -> Result<(Channels, Option<f64>), IdentError> {
         let s = self.sweep_sim(params, run)?;
-        let mut out = vec![Channel {
-            name: "output_angle_rad".into(),
-            values: s.output_rad,
-        }];
-        for (name, measured, values) in [
-            ("tension_in_1_n", &r.tension_in_1_n, s.tension_in_1_n),
-            ("tension_in_2_n", &r.tension_in_2_n, s.tension_in_2_n),
-            ("tension_out_1_n", &r.tension_out_1_n, s.tension_1_n),
-            ("tension_out_2_n", &r.tension_out_2_n, s.tension_2_n),
-        ] {
-            if measured.is_some() {
-                out.push(Channel {
-                    name: name.into(),
-                    values,
-                });
-            }
-        }
-        let mut channels = Channels(out);
-        apply_sensors(params, &r.time_s, &mut channels)?;
-        Ok(channels)
+        let one_span = params
+            .effects
+            .iter()
+            .all(|a| matches!(a.effect.site(), Site::RopeLaw | Site::Joint | Site::Sensor));
+        let bound = (arg == Argument::TensionN && one_span)
+            .then(|| bound_of(&[&s.tension_1_n, &s.tension_2_n]))
+            .filter(|b| b.is_finite());
+        Ok((self.channels(params, run, s)?, bound))
     }
 
     fn small_signal_response(
@@ -293,6 +338,60 @@ pub enum SpecimenPlant<'a> {
     Cyclic(&'a CyclicDataset),
 }
 
+impl SpecimenPlant<'_> {
+    /// The specimen's simulated tension over run `run`.
+    fn tension(&self, params: &PlantParams, run: usize) -> Result<Vec<f64>, IdentError> {
+        let (name, out) = match self {
+            Self::Relaxation(rx) => (
+                &rx.runs[run].name,
+                sim::simulate_relaxation(&params.law, rx.strain_of(run), &rx.runs[run].time_s),
+            ),
+            Self::Cyclic(cy) => (
+                &cy.runs[run].name,
+                sim::simulate_cyclic(&params.law, &cy.runs[run].time_s, &cy.runs[run].strain),
+            ),
+        };
+        out.map_err(|source| IdentError::Simulation {
+            run: name.clone(),
+            source,
+        })
+    }
+
+    /// The measured channel from the simulated tension `values`.
+    fn channels(
+        &self,
+        params: &PlantParams,
+        run: usize,
+        values: Vec<f64>,
+    ) -> Result<Channels, IdentError> {
+        let mut channels = Channels(vec![Channel {
+            name: "tension_n".into(),
+            values,
+        }]);
+        let time_s = match self {
+            Self::Relaxation(rx) => &rx.runs[run].time_s,
+            Self::Cyclic(cy) => &cy.runs[run].time_s,
+        };
+        apply_sensors(params, time_s, &mut channels)?;
+        Ok(channels)
+    }
+}
+
+/// The largest of `series` widened by twice the largest change from one sample to the
+/// next in any of them: a bound on the values a simulation stepping from sample to
+/// sample evaluated in between (a Newton iterate, a substep, stays within a step's
+/// change of its ends).
+fn bound_of(series: &[&[f64]]) -> f64 {
+    let (mut top, mut change) = (f64::NEG_INFINITY, 0.0f64);
+    for t in series {
+        for w in t.windows(2) {
+            change = change.max((w[1] - w[0]).abs());
+        }
+        top = t.iter().fold(top, |a, &b| a.max(b));
+    }
+    top + 2.0 * change
+}
+
 impl Plant for SpecimenPlant<'_> {
     fn kind(&self) -> DataKind {
         match self {
@@ -309,30 +408,23 @@ impl Plant for SpecimenPlant<'_> {
     }
 
     fn simulate(&self, params: &PlantParams, run: usize) -> Result<Channels, IdentError> {
-        let (name, out) = match self {
-            Self::Relaxation(rx) => (
-                &rx.runs[run].name,
-                sim::simulate_relaxation(&params.law, rx.strain_of(run), &rx.runs[run].time_s),
-            ),
-            Self::Cyclic(cy) => (
-                &cy.runs[run].name,
-                sim::simulate_cyclic(&params.law, &cy.runs[run].time_s, &cy.runs[run].strain),
-            ),
-        };
-        let values = out.map_err(|source| IdentError::Simulation {
-            run: name.clone(),
-            source,
-        })?;
-        let mut channels = Channels(vec![Channel {
-            name: "tension_n".into(),
-            values,
-        }]);
-        let time_s = match self {
-            Self::Relaxation(rx) => &rx.runs[run].time_s,
-            Self::Cyclic(cy) => &cy.runs[run].time_s,
-        };
-        apply_sensors(params, time_s, &mut channels)?;
-        Ok(channels)
+        self.channels(params, run, self.tension(params, run)?)
+    }
+
+    /// Tension (the only argument a specimen has): its tension at every sample, widened
+    /// by twice the largest change from one sample to the next, bounds every
+    /// evaluation of the law (as the rig's, [`RigPlant`]).
+    fn simulate_bounded(
+        &self,
+        params: &PlantParams,
+        run: usize,
+        arg: Argument,
+    ) -> Result<(Channels, Option<f64>), IdentError> {
+        let t = self.tension(params, run)?;
+        let bound = (arg == Argument::TensionN)
+            .then(|| bound_of(&[&t]))
+            .filter(|b| b.is_finite());
+        Ok((self.channels(params, run, t)?, bound))
     }
 
     /// The specimen's tension (the only argument it has).
