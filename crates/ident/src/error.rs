@@ -65,6 +65,10 @@ pub enum IdentError {
         /// Starts tried.
         starts: usize,
     },
+    /// A computation made ahead of the decision that needs it was abandoned once the
+    /// decision went the other way (internal: its result is never used or reported).
+    #[error("abandoned: made ahead of a decision that went the other way")]
+    Abandoned,
     /// A run's measured channel does not vary over its analysed samples: an error
     /// cannot be normalised by it (NRMSE, intervals), so no result would be a number.
     #[error("{dir}: run {run}: the measured {channel} does not vary over its {samples} analysed samples, so the model's error cannot be normalised (NRMSE and intervals would not be numbers); fix: check that the run file holds the measurement (docs/measurements.md), or leave out a run without motion")]

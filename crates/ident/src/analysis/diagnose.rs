@@ -1,7 +1,7 @@
 //! Diagnosis: the baseline and every applicable registered effect fitted and ranked by
 //! BIC, the decision rule (the constants below) and the verdict in words.
 
-use longreach_drive::effects::{DataKind, REGISTRY};
+use longreach_drive::effects::{DataKind, Site, REGISTRY};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -421,40 +421,149 @@ fn led_fits(
     models: &[Model],
     base_ssr: f64,
 ) -> (Vec<Result<Fitted, IdentError>>, Vec<bool>, Option<Led>) {
-    let (stages, screens) = screened(prep, models);
-    let mut stages: Vec<Option<Staged<'_, '_>>> = stages.into_iter().map(Some).collect();
-    let lead = (0..screens.len())
-        .filter(|&i| screens[i].is_ok())
-        .min_by(|&a, &b| {
-            let ssr = |k: usize| screens[k].as_ref().map_or(f64::INFINITY, |f| f.ssr);
-            ssr(a).total_cmp(&ssr(b)).then(a.cmp(&b))
-        });
-    let mut led = None;
-    let mut lead_fit = None;
-    let mut reference = f64::INFINITY;
-    if let Some(k) = lead {
-        if let Some(stage) = stages[k].take() {
-            let f = stage.fit();
-            if let Ok(f) = &f {
-                reference = f.ssr;
-                if f.nrmse > REFINE_MARGIN * f.noise_floor && f.ssr < base_ssr {
-                    let e = f.model.effects.len().saturating_sub(1);
-                    let refined = refine_shape(prep, f, e);
-                    if let Ok(Some((r, g))) = &refined {
-                        if r.kept {
-                            reference = reference.min(g.ssr);
-                        }
-                    }
-                    led = Some(Led {
-                        effect: f.model.effects[e].effect.name().to_string(),
-                        ssr_bits: f.ssr.to_bits(),
-                        refined,
-                    });
+    let (fits, stop, led, _) = led_fits_ahead(prep, models, base_ssr, true);
+    (fits, stop, led)
+}
+
+/// [`led_fits`], and the leader's index; `ahead_allowed`: whether the best of the plain
+/// rig's screens may be fitted (and refined) while the relay rig's screens run (false:
+/// after every screen; the same result, slower).
+#[allow(clippy::type_complexity)]
+fn led_fits_ahead(
+    prep: &Prepared<'_>,
+    models: &[Model],
+    base_ssr: f64,
+    ahead_allowed: bool,
+) -> (
+    Vec<Result<Fitted, IdentError>>,
+    Vec<bool>,
+    Option<Led>,
+    Option<usize>,
+) {
+    let n = models.len();
+    let mut stages: Vec<Option<Staged<'_, '_>>> =
+        models.iter().map(|m| Some(Staged::new(prep, m))).collect();
+    // The candidates on the relay rig screen for several times as long as the others
+    // (the relays' step). Their screens run beside the others', and the best of the
+    // others is fitted (and its law refined) meanwhile, ahead of the decision: the
+    // leader's work has serial stretches (the optimiser's algebra) that the screens
+    // fill. The leader is still the best of every screen. When it is the one fitted
+    // ahead, that fit and refinement are used (the same computation: the same bits);
+    // when a relay-rig screen beats it, the work ahead is abandoned at once (its own
+    // instance of the prepared data refuses to simulate further,
+    // [`Prepared::abandonable`]) and the leader is fitted after the screens, as before.
+    let slow: Vec<bool> = models.iter().map(on_relay_rig).collect();
+    let abandon = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let ahead_prep = if ahead_allowed && slow.contains(&true) && slow.contains(&false) {
+        prep.abandonable(abandon.clone()).ok()
+    } else {
+        None
+    };
+    let mut screens: Vec<Option<Result<Fitted, IdentError>>> = (0..n).map(|_| None).collect();
+    let mut ahead: Option<(usize, Leading)> = None;
+    if let Some(ahead_prep) = &ahead_prep {
+        type Side<'s, 'p, 'a> = Vec<(usize, &'s mut Staged<'p, 'a>)>;
+        let (slow_st, fast_st): (Side<'_, '_, '_>, Side<'_, '_, '_>) = stages
+            .iter_mut()
+            .enumerate()
+            .filter_map(|(i, s)| s.as_mut().map(|s| (i, s)))
+            .partition(|(i, _)| slow[*i]);
+        // `(squared error, index)`: of the relay rig's side the best bound known (a
+        // screen's least squares' start bounds its end), of the other side its best
+        // screen. Whichever learns last that the relay rig's beats the one fitted ahead
+        // abandons it: the relay-rig candidate's scanned start often does already.
+        let race: std::sync::Mutex<[Option<(f64, usize)>; 2]> = std::sync::Mutex::new([None; 2]);
+        let settle = |side: usize, value: Option<(f64, usize)>| {
+            let beats =
+                |a: (f64, usize), b: (f64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).is_lt();
+            let mut r = race.lock().unwrap_or_else(|e| e.into_inner());
+            if let Some(v) = value {
+                if r[side].is_none_or(|old| beats(v, old)) {
+                    r[side] = Some(v);
                 }
             }
-            lead_fit = Some(f);
+            if let [Some(s), Some(f)] = *r {
+                if beats(s, f) {
+                    abandon.store(true, std::sync::atomic::Ordering::Relaxed);
+                }
+            }
+        };
+        // Screens a side's candidates (`start`: each one's least squares' start, as it
+        // is known); their results and stages, and the best.
+        #[allow(clippy::type_complexity)]
+        fn screen_side<'s, 'p, 'a>(
+            side: Vec<(usize, &'s mut Staged<'p, 'a>)>,
+            start: &(dyn Fn(f64, usize) + Sync),
+        ) -> (
+            Vec<(usize, Result<Fitted, IdentError>, &'s mut Staged<'p, 'a>)>,
+            Option<(f64, usize)>,
+        ) {
+            let done: Vec<_> = side
+                .into_par_iter()
+                .map(|(i, s)| {
+                    let r = s.screen_reporting(&|ssr| start(ssr, i));
+                    (i, r, s)
+                })
+                .collect();
+            let best = done
+                .iter()
+                .filter_map(|(i, r, _)| r.as_ref().ok().map(|f| (f.ssr, *i)))
+                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            (done, best)
+        }
+        let (slow_done, (fast_done, led_ahead)) = rayon::join(
+            || {
+                let (done, best) = screen_side(slow_st, &|ssr, i| settle(0, Some((ssr, i))));
+                settle(0, best);
+                done
+            },
+            || {
+                let (done, best) = screen_side(fast_st, &|_, _| {});
+                settle(1, best);
+                let led = best.and_then(|(_, i)| {
+                    let (_, _, stage) = done.iter().find(|(j, _, _)| *j == i)?;
+                    let stage = stage.rebound(ahead_prep);
+                    Some((i, lead_on(ahead_prep, stage, base_ssr)))
+                });
+                (done, led)
+            },
+        );
+        for (i, r, _) in slow_done.into_iter().chain(fast_done) {
+            screens[i] = Some(r);
+        }
+        ahead = led_ahead;
+    } else {
+        let all: Vec<Result<Fitted, IdentError>> = stages
+            .par_iter_mut()
+            .map(|s| {
+                s.as_mut()
+                    .map_or(Err(IdentError::NoStartFitted { starts: 0 }), Staged::screen)
+            })
+            .collect();
+        for (i, r) in all.into_iter().enumerate() {
+            screens[i] = Some(r);
         }
     }
+    let screens: Vec<Result<Fitted, IdentError>> = screens
+        .into_iter()
+        .map(|r| r.unwrap_or(Err(IdentError::NoStartFitted { starts: 0 })))
+        .collect();
+    let order: Vec<usize> = (0..n).collect();
+    let lead = best_screen(&screens, &order);
+    let abandoned = abandon.load(std::sync::atomic::Ordering::Relaxed);
+    let leading = match (lead, ahead) {
+        // (nothing beat the one fitted ahead when it leads: never abandoned then)
+        (Some(k), Some((i, l))) if i == k && !abandoned => {
+            stages[k] = None;
+            Some(l)
+        }
+        (Some(k), _) => stages[k].take().map(|stage| lead_on(prep, stage, base_ssr)),
+        (None, _) => None,
+    };
+    let (led, lead_fit, reference) = match leading {
+        Some(l) => (l.led, Some(l.fit), l.reference),
+        None => (None, None, f64::INFINITY),
+    };
     let stop: Vec<bool> = screens
         .iter()
         .enumerate()
@@ -465,7 +574,68 @@ fn led_fits(
     if let (Some(k), Some(f)) = (lead, lead_fit) {
         fits[k] = f;
     }
-    (fits, stop, led)
+    (fits, stop, led, lead)
+}
+
+/// The leader's whole fit ([`Staged::fit`]) and, when it leaves the data above
+/// [`REFINE_MARGIN`] while explaining some of it, its law refined; `reference`: the
+/// squared error the others' screens are stopped against (the refined law's when it is
+/// kept, else the fit's).
+struct Leading {
+    fit: Result<Fitted, IdentError>,
+    led: Option<Led>,
+    reference: f64,
+}
+
+/// [`Leading`] of the candidate of `stage` (screened), `base_ssr` the baseline's squared
+/// error.
+fn lead_on(prep: &Prepared<'_>, stage: Staged<'_, '_>, base_ssr: f64) -> Leading {
+    let fit = stage.fit();
+    let mut led = None;
+    let mut reference = f64::INFINITY;
+    if let Ok(f) = &fit {
+        reference = f.ssr;
+        if f.nrmse > REFINE_MARGIN * f.noise_floor && f.ssr < base_ssr {
+            let e = f.model.effects.len().saturating_sub(1);
+            let refined = refine_shape(prep, f, e);
+            if let Ok(Some((r, g))) = &refined {
+                if r.kept {
+                    reference = reference.min(g.ssr);
+                }
+            }
+            led = Some(Led {
+                effect: f.model.effects[e].effect.name().to_string(),
+                ssr_bits: f.ssr.to_bits(),
+                refined,
+            });
+        }
+    }
+    Leading {
+        fit,
+        led,
+        reference,
+    }
+}
+
+/// Position in `screens` of the best screen (the smallest squared error; of equals the
+/// candidate first in `order`, its index among all), `None` when every screen failed.
+fn best_screen(screens: &[Result<Fitted, IdentError>], order: &[usize]) -> Option<usize> {
+    (0..screens.len())
+        .filter(|&i| screens[i].is_ok())
+        .min_by(|&a, &b| {
+            let ssr = |k: usize| screens[k].as_ref().map_or(f64::INFINITY, |f| f.ssr);
+            ssr(a).total_cmp(&ssr(b)).then(order[a].cmp(&order[b]))
+        })
+}
+
+/// Whether `model` is simulated on the relay rig (an effect at the relay pulleys or on
+/// the spans splits each rope into spans): its simulations cost several times the
+/// plain rig's.
+fn on_relay_rig(model: &Model) -> bool {
+    model
+        .effects
+        .iter()
+        .any(|u| matches!(u.effect.site(), Site::RelayPulley | Site::Span))
 }
 
 /// Share of the baseline's excess squared error above the floor that the baseline,
@@ -2318,8 +2488,8 @@ fn describe_refinement(r: &ShapeRefinement) -> String {
 #[cfg(test)]
 mod tests {
     use super::{
-        pair_verdict, partner_share, significant, table_value, Candidate, Fitted, Judge,
-        PairVerdict, PARTNER_MIN_SHARE,
+        led_fits_ahead, pair_verdict, partner_share, significant, table_value, Candidate, Fitted,
+        Judge, PairVerdict, PARTNER_MIN_SHARE,
     };
     use crate::analysis::prepare::Prepared;
     use crate::model::Model;
@@ -2544,5 +2714,85 @@ mod tests {
         assert_eq!(table_value(1.0014), "1.001");
         assert_eq!(table_value(0.5), "0.500");
         assert_eq!(table_value(0.0), "0");
+    }
+
+    /// The leader fitted ahead, while the relay rig's screens run, gives the fits,
+    /// stops and refinement of the leader fitted after every screen, to the bit: when
+    /// the best plain-rig screen leads (the stiffening on two runs of the example,
+    /// refined), and when a relay-rig candidate leads instead (`relay_friction` hidden
+    /// in a short synthetic sweep; no refinement there: baseline squared error 0), the
+    /// plain rig's best then fitted ahead for nothing.
+    #[test]
+    fn the_leader_fitted_ahead_is_the_leader_fitted_after() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../data/examples/example_sweep_stiffening");
+        let mut ds = Dataset::load(&dir).unwrap();
+        if let crate::DatasetKind::SineSweep(sw) = &mut ds.kind {
+            sw.runs.truncate(2);
+        }
+        let prep = Prepared::new(&ds).unwrap();
+        let base = Model::baseline(&ds).unwrap();
+        let find = |n: &str| effects::find(n).unwrap();
+        let one = |n: &str| base.with_effect(find(n));
+        #[allow(clippy::type_complexity)]
+        let summary = |(fits, stop, led, lead): (
+            Vec<Result<Fitted, crate::IdentError>>,
+            Vec<bool>,
+            Option<super::Led>,
+            Option<usize>,
+        )| {
+            let fits: Vec<String> = fits
+                .iter()
+                .map(|f| match f {
+                    Ok(f) => format!(
+                        "{} {} {}",
+                        f.ssr.to_bits(),
+                        f.fit.is_some(),
+                        f.model.to_toml("t")
+                    ),
+                    Err(e) => e.to_string(),
+                })
+                .collect();
+            let led = led.map(|l| {
+                (
+                    l.effect,
+                    l.ssr_bits,
+                    format!(
+                        "{:?}",
+                        l.refined.map(|r| r.map(|(s, g)| (s, g.ssr.to_bits())))
+                    ),
+                )
+            });
+            (fits, stop, led, lead)
+        };
+        // the stiffening leads: fitted and refined ahead
+        let models = [one("relay_friction"), one("nonlinear_stiffness")];
+        let after = summary(led_fits_ahead(&prep, &models, f64::INFINITY, false));
+        let ahead = summary(led_fits_ahead(&prep, &models, f64::INFINITY, true));
+        assert_eq!(after.3, Some(1), "the stiffening leads: {after:?}");
+        assert!(after.2.is_some(), "its law is refined: {after:?}");
+        assert_eq!(after, ahead);
+        // a relay-rig candidate leads (relay friction hidden in a short synthetic
+        // sweep): the plain rig's best, fitted ahead, is abandoned
+        let mut truth = base.with_effect(find("relay_friction"));
+        truth.effects[0].params[0].value = 0.02;
+        truth.effects[0].params[1].value = 1e-4;
+        let mut opt = crate::synth::SweepOptions::paper("dyneema2", 17);
+        opt.runs = vec![(147.0, 4.5f64.to_radians()), (147.0, 1.5f64.to_radians())];
+        opt.frequencies_hz = vec![1.0, 1.8, 2.4, 3.0, 3.5, 4.5];
+        opt.settle_s = 2.0;
+        opt.min_hold_s = 2.0;
+        opt.tension_channels = true;
+        let relay_ds = Dataset {
+            dir: Default::default(),
+            title: String::new(),
+            kind: crate::DatasetKind::SineSweep(crate::synth::sweep(&truth, &opt).unwrap()),
+        };
+        let prep = Prepared::new(&relay_ds).unwrap();
+        let models = [one("joint_friction"), one("relay_friction")];
+        let after = summary(led_fits_ahead(&prep, &models, 0.0, false));
+        let ahead = summary(led_fits_ahead(&prep, &models, 0.0, true));
+        assert_eq!(after.3, Some(1), "the relay-rig candidate leads: {after:?}");
+        assert_eq!(after, ahead);
     }
 }

@@ -127,6 +127,17 @@ impl<'p, 'a> SimCache<'p, 'a> {
         }
     }
 
+    /// The simulation at the free values `x` when it was made (or seeded) and is still
+    /// kept; nothing is simulated.
+    fn cached(&self, x: &[f64]) -> Option<std::sync::Arc<Vec<Vec<f64>>>> {
+        let key: Vec<u64> = x.iter().map(|v| v.to_bits()).collect();
+        let entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
+        entries
+            .iter()
+            .find(|(k, _)| *k == key)
+            .map(|(_, s)| s.clone())
+    }
+
     /// The compared channel of every run of the model at the free values `x`.
     fn simulate(&self, x: &[f64]) -> Result<std::sync::Arc<Vec<Vec<f64>>>, IdentError> {
         let key: Vec<u64> = x.iter().map(|v| v.to_bits()).collect();
@@ -1138,6 +1149,16 @@ impl<'p, 'a> Staged<'p, 'a> {
     /// [`SCREEN_JACOBIANS`] Jacobians (or at that start when its least squares fails),
     /// with `fit = None` (no intervals: a screen, not a fit).
     pub fn screen(&mut self) -> Result<Fitted, IdentError> {
+        self.screen_reporting(&|_| {})
+    }
+
+    /// [`Self::screen`], telling `start` the squared error at the start of its least
+    /// squares as soon as it is known: the screen's own can only be lower (the least
+    /// squares accepts descents only, and keeps its start when it fails).
+    pub(crate) fn screen_reporting(
+        &mut self,
+        start: &(dyn Fn(f64) + Sync),
+    ) -> Result<Fitted, IdentError> {
         let (prep, model) = (self.cache.prep, self.cache.model);
         let n_runs = prep.runs.len();
         let own: Vec<f64> = model.fit_specs(n_runs).iter().map(|s| s.initial).collect();
@@ -1145,6 +1166,9 @@ impl<'p, 'a> Staged<'p, 'a> {
         let (nrmse_before, noise_floor) = prep.overall(&sims0);
         let searched = starting_values(&self.cache, true)?;
         let x0 = or_own(&self.cache, searched.clone(), own, prep.ssr(&sims0)).swap_remove(0);
+        if let Some(sims) = self.cache.cached(&x0) {
+            start(prep.ssr(&sims));
+        }
         // (the second stage chooses among them as `fit_once` does)
         self.starts = Some(searched);
         let specs = fit_specs(prep, &model.with_values(&x0, n_runs));
@@ -1172,6 +1196,25 @@ impl<'p, 'a> Staged<'p, 'a> {
             ssr: prep.ssr(&sims),
             sims,
         })
+    }
+
+    /// This stage (screened or not) on `prep`, another instance of the same prepared
+    /// data ([`Prepared::abandonable`]), with the simulations and starts it holds: its
+    /// fit there is its fit here, to the bit.
+    pub(crate) fn rebound<'q>(&self, prep: &'q Prepared<'a>) -> Staged<'q, 'a>
+    where
+        'p: 'q,
+    {
+        fn copy<T: Clone>(m: &std::sync::Mutex<Vec<T>>) -> std::sync::Mutex<Vec<T>> {
+            std::sync::Mutex::new(m.lock().unwrap_or_else(|e| e.into_inner()).clone())
+        }
+        let mut cache = SimCache::new(prep, self.cache.model);
+        cache.entries = copy(&self.cache.entries);
+        cache.bounds = copy(&self.cache.bounds);
+        Staged {
+            cache,
+            starts: self.starts.clone(),
+        }
     }
 
     /// The second stage: the whole fit, [`fit_model`]'s.

@@ -174,6 +174,9 @@ pub struct Prepared<'a> {
     /// fit, compare and diagnose but the sweeps' refined ones): the work of a diagnosis,
     /// whatever the machine's load.
     simulations: std::sync::atomic::AtomicUsize,
+    /// When set, every simulation asked of this instance fails with
+    /// [`IdentError::Abandoned`] ([`Self::abandonable`]).
+    abandon: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
 }
 
 impl<'a> Prepared<'a> {
@@ -284,7 +287,30 @@ impl<'a> Prepared<'a> {
             substeps,
             arm_refinement: 1,
             simulations: std::sync::atomic::AtomicUsize::new(0),
+            abandon: None,
         })
+    }
+
+    /// The same data prepared again (the same plant, step and refinement), for work
+    /// made ahead of a decision: once `abandon` is set, every simulation asked of it
+    /// fails with [`IdentError::Abandoned`], so what runs there stops within one
+    /// simulation of a run.
+    pub(crate) fn abandonable(
+        &self,
+        abandon: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    ) -> Result<Prepared<'a>, IdentError> {
+        let mut p =
+            Self::with_substeps(self.ds, self.substeps)?.with_arm_refinement(self.arm_refinement);
+        p.abandon = Some(abandon);
+        Ok(p)
+    }
+
+    /// [`IdentError::Abandoned`] once this instance's work was abandoned.
+    fn check_abandoned(&self) -> Result<(), IdentError> {
+        match &self.abandon {
+            Some(a) if a.load(std::sync::atomic::Ordering::Relaxed) => Err(IdentError::Abandoned),
+            _ => Ok(()),
+        }
     }
 
     /// The same data with an arm's simulation steps divided into `refinement` (the
@@ -319,6 +345,7 @@ impl<'a> Prepared<'a> {
     /// Simulates `model` on run `r`: its stacked channels concatenated, as in
     /// [`Self::simulate`].
     pub fn simulate_run(&self, model: &Model, r: usize) -> Result<Vec<f64>, IdentError> {
+        self.check_abandoned()?;
         let params = model.plant_params(r)?;
         self.stacked(r, self.plant.simulate(&params, r)?)
     }
@@ -331,6 +358,7 @@ impl<'a> Prepared<'a> {
         r: usize,
         arg: Argument,
     ) -> Result<(Vec<f64>, Option<f64>), IdentError> {
+        self.check_abandoned()?;
         let params = model.plant_params(r)?;
         let (channels, bound) = self.plant.simulate_bounded(&params, r, arg)?;
         Ok((self.stacked(r, channels)?, bound))
@@ -378,6 +406,7 @@ impl<'a> Prepared<'a> {
         params: &crate::model::PlantParams,
         r: usize,
     ) -> Result<Channels, IdentError> {
+        self.check_abandoned()?;
         self.simulations
             .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         self.plant.simulate(params, r)
