@@ -440,9 +440,6 @@ fn led_fits_ahead(
     Option<Led>,
     Option<usize>,
 ) {
-    let n = models.len();
-    let mut stages: Vec<Option<Staged<'_, '_>>> =
-        models.iter().map(|m| Some(Staged::new(prep, m))).collect();
     // The candidates on the relay rig screen for several times as long as the others
     // (the relays' step). Their screens run beside the others', and the best of the
     // others is fitted (and its law refined) meanwhile, ahead of the decision: the
@@ -459,31 +456,26 @@ fn led_fits_ahead(
     } else {
         None
     };
-    let mut screens: Vec<Option<Result<Fitted, IdentError>>> = (0..n).map(|_| None).collect();
-    let mut ahead: Option<(usize, Leading)> = None;
-    if let Some(ahead_prep) = &ahead_prep {
+    let (stages, screens, ahead) = if let Some(ahead_prep) = &ahead_prep {
+        let mut stages: Vec<Staged<'_, '_>> = models.iter().map(|m| Staged::new(prep, m)).collect();
         type Side<'s, 'p, 'a> = Vec<(usize, &'s mut Staged<'p, 'a>)>;
-        let (slow_st, fast_st): (Side<'_, '_, '_>, Side<'_, '_, '_>) = stages
-            .iter_mut()
-            .enumerate()
-            .filter_map(|(i, s)| s.as_mut().map(|s| (i, s)))
-            .partition(|(i, _)| slow[*i]);
+        let (slow_st, fast_st): (Side<'_, '_, '_>, Side<'_, '_, '_>) =
+            stages.iter_mut().enumerate().partition(|(i, _)| slow[*i]);
         // `(squared error, index)`: of the relay rig's side the best bound known (a
         // screen's least squares' start bounds its end), of the other side its best
         // screen. Whichever learns last that the relay rig's beats the one fitted ahead
         // abandons it: the relay-rig candidate's scanned start often does already.
         let race: std::sync::Mutex<[Option<(f64, usize)>; 2]> = std::sync::Mutex::new([None; 2]);
         let settle = |side: usize, value: Option<(f64, usize)>| {
-            let beats =
-                |a: (f64, usize), b: (f64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).is_lt();
+            let beats = |a: &(f64, usize), b: &(f64, usize)| screen_order(a, b).is_lt();
             let mut r = race.lock().unwrap_or_else(|e| e.into_inner());
             if let Some(v) = value {
-                if r[side].is_none_or(|old| beats(v, old)) {
+                if r[side].is_none_or(|old| beats(&v, &old)) {
                     r[side] = Some(v);
                 }
             }
             if let [Some(s), Some(f)] = *r {
-                if beats(s, f) {
+                if beats(&s, &f) {
                     abandon.store(true, std::sync::atomic::Ordering::Relaxed);
                 }
             }
@@ -508,7 +500,7 @@ fn led_fits_ahead(
             let best = done
                 .iter()
                 .filter_map(|(i, r, _)| r.as_ref().ok().map(|f| (f.ssr, *i)))
-                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                .min_by(screen_order);
             (done, best)
         }
         let (slow_done, (fast_done, led_ahead)) = rayon::join(
@@ -528,28 +520,26 @@ fn led_fits_ahead(
                 (done, led)
             },
         );
-        for (i, r, _) in slow_done.into_iter().chain(fast_done) {
-            screens[i] = Some(r);
-        }
-        ahead = led_ahead;
-    } else {
-        let all: Vec<Result<Fitted, IdentError>> = stages
-            .par_iter_mut()
-            .map(|s| {
-                s.as_mut()
-                    .map_or(Err(IdentError::NoStartFitted { starts: 0 }), Staged::screen)
-            })
+        // (every candidate on one side or the other: back in the models' order)
+        let mut done: Vec<(usize, Result<Fitted, IdentError>)> = slow_done
+            .into_iter()
+            .chain(fast_done)
+            .map(|(i, r, _)| (i, r))
             .collect();
-        for (i, r) in all.into_iter().enumerate() {
-            screens[i] = Some(r);
-        }
-    }
-    let screens: Vec<Result<Fitted, IdentError>> = screens
-        .into_iter()
-        .map(|r| r.unwrap_or(Err(IdentError::NoStartFitted { starts: 0 })))
-        .collect();
-    let order: Vec<usize> = (0..n).collect();
-    let lead = best_screen(&screens, &order);
+        done.sort_by_key(|(i, _)| *i);
+        let screens = done.into_iter().map(|(_, r)| r).collect();
+        (stages, screens, led_ahead)
+    } else {
+        let (stages, screens) = screened(prep, models);
+        (stages, screens, None)
+    };
+    let mut stages: Vec<Option<Staged<'_, '_>>> = stages.into_iter().map(Some).collect();
+    let lead = screens
+        .iter()
+        .enumerate()
+        .filter_map(|(i, r)| r.as_ref().ok().map(|f| (f.ssr, i)))
+        .min_by(screen_order)
+        .map(|(_, i)| i);
     let abandoned = abandon.load(std::sync::atomic::Ordering::Relaxed);
     let leading = match (lead, ahead) {
         // (nothing beat the one fitted ahead when it leads: never abandoned then)
@@ -617,15 +607,11 @@ fn lead_on(prep: &Prepared<'_>, stage: Staged<'_, '_>, base_ssr: f64) -> Leading
     }
 }
 
-/// Position in `screens` of the best screen (the smallest squared error; of equals the
-/// candidate first in `order`, its index among all), `None` when every screen failed.
-fn best_screen(screens: &[Result<Fitted, IdentError>], order: &[usize]) -> Option<usize> {
-    (0..screens.len())
-        .filter(|&i| screens[i].is_ok())
-        .min_by(|&a, &b| {
-            let ssr = |k: usize| screens[k].as_ref().map_or(f64::INFINITY, |f| f.ssr);
-            ssr(a).total_cmp(&ssr(b)).then(order[a].cmp(&order[b]))
-        })
+/// The order of screens `(squared error, index among the candidates)`: the smaller
+/// error first, of equals the candidate first in the models' order. The leader is the
+/// first screen in it.
+fn screen_order(a: &(f64, usize), b: &(f64, usize)) -> std::cmp::Ordering {
+    a.0.total_cmp(&b.0).then(a.1.cmp(&b.1))
 }
 
 /// Whether `model` is simulated on the relay rig (an effect at the relay pulleys or on

@@ -49,6 +49,11 @@ struct SimCache<'p, 'a> {
     bounds: std::sync::Mutex<Vec<(Vec<u64>, Vec<Option<f64>>)>>,
 }
 
+/// The key a [`SimCache`] keeps a point by: the bits of its free values.
+fn point_key(x: &[f64]) -> Vec<u64> {
+    x.iter().map(|v| v.to_bits()).collect()
+}
+
 /// The runs a free value can change ([`SimCache::unchanged_runs`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Reach {
@@ -109,7 +114,7 @@ impl<'p, 'a> SimCache<'p, 'a> {
             Reach::All => None,
             Reach::Run(r) => Some((0..n).map(|q| q != r).collect()),
             Reach::Above(knot) => {
-                let key: Vec<u64> = base.iter().map(|v| v.to_bits()).collect();
+                let key = point_key(base);
                 let bounds = self.bounds.lock().unwrap_or_else(|e| e.into_inner());
                 let (_, b) = bounds.iter().find(|(k, _)| *k == key)?;
                 Some(b.iter().map(|b| b.is_some_and(|b| b < knot)).collect())
@@ -120,7 +125,7 @@ impl<'p, 'a> SimCache<'p, 'a> {
     /// Records `sims` as the model's simulation at the free values `x` (simulated
     /// elsewhere on the same prepared data).
     fn seed(&self, x: &[f64], sims: std::sync::Arc<Vec<Vec<f64>>>) {
-        let key: Vec<u64> = x.iter().map(|v| v.to_bits()).collect();
+        let key = point_key(x);
         let mut entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
         if !entries.iter().any(|(k, _)| *k == key) {
             entries.push((key, sims));
@@ -130,7 +135,7 @@ impl<'p, 'a> SimCache<'p, 'a> {
     /// The simulation at the free values `x` when it was made (or seeded) and is still
     /// kept; nothing is simulated.
     fn cached(&self, x: &[f64]) -> Option<std::sync::Arc<Vec<Vec<f64>>>> {
-        let key: Vec<u64> = x.iter().map(|v| v.to_bits()).collect();
+        let key = point_key(x);
         let entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
         entries
             .iter()
@@ -140,7 +145,7 @@ impl<'p, 'a> SimCache<'p, 'a> {
 
     /// The compared channel of every run of the model at the free values `x`.
     fn simulate(&self, x: &[f64]) -> Result<std::sync::Arc<Vec<Vec<f64>>>, IdentError> {
-        let key: Vec<u64> = x.iter().map(|v| v.to_bits()).collect();
+        let key = point_key(x);
         {
             let mut entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
             if let Some(k) = entries.iter().position(|(k, _)| *k == key) {

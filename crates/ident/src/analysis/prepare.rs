@@ -632,7 +632,9 @@ impl<'a> Prepared<'a> {
     /// Total stacked residuals: analysed samples times stacked channels, over the runs
     /// (the length of [`Self::residuals_of`]).
     pub fn n_samples(&self) -> usize {
-        self.runs.iter().map(|r| r.idx.len() * r.n_channels()).sum()
+        (0..self.runs.len())
+            .map(|r| self.run_residual_count(r))
+            .sum()
     }
 
     /// Whether any run stacks a channel besides the primary one.
