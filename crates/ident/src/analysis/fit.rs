@@ -16,9 +16,13 @@ use crate::fitting::{
 use crate::model::{Model, Owner};
 use crate::sim;
 
-/// Most bytes of simulated channels a [`SimCache`] keeps (for an arm dataset of four
-/// 8 s runs, one model's simulation is 0.36 MB).
-const SIM_CACHE_BYTES: usize = 32 << 20;
+/// Most bytes of simulated channels a [`SimCache`] keeps: for an arm dataset of four
+/// 8 s runs, one model's simulation is 0.36 MB; for a 5-run sweep with its four tension
+/// channels (23 250 samples a run), 4.65 MB. A staged fit retraces its screen's path
+/// (the grid's points, the least squares' start and its first Jacobians: about 15
+/// points), and the path must still be kept then: at 32 MB it was not, and a relay-rig
+/// candidate on such a sweep made 40 of its 310 simulations of a run twice (each ~0.1 s).
+const SIM_CACHE_BYTES: usize = 256 << 20;
 
 /// The simulations of one model (one set of effects and fixed numbers) at the free
 /// values `x` ([`Model::with_values`]) already made during one fit, by the bits of `x`:
