@@ -30,4 +30,4 @@ pub use law::{
     MAX_KELVIN,
 };
 pub use relaxation::{relaxation_tension_n, rms_error};
-pub use table::{Table, TableFile, MAX_KNOTS};
+pub use table::{reached_during, Table, TableFile, MAX_KNOTS};

@@ -8,9 +8,45 @@
 //! from 0 to every knot (`y > 0`): the strain and the energy of a spring whose tangent
 //! stiffness the table scales ([`Table::integral_inv`], [`Table::integral_x_over`]).
 
+use std::cell::Cell;
+
 use serde::{Deserialize, Serialize};
 
 use crate::error::RopeError;
+
+thread_local! {
+    /// The largest argument at which a table was evaluated on this thread since the
+    /// innermost [`reached_during`] began (`-inf`: none).
+    static REACHED: Cell<f64> = const { Cell::new(f64::NEG_INFINITY) };
+}
+
+/// Notes an evaluation of a table at `x` ([`reached_during`]).
+#[inline]
+fn reach(x: f64) {
+    REACHED.with(|r| {
+        if x > r.get() {
+            r.set(x);
+        }
+    });
+}
+
+/// Runs `f`, and returns with its result the largest argument at which it evaluated any
+/// table on this thread (`None`: it evaluated none). Every evaluation counts, a
+/// Newton iterate's as a converged state's: a table changed only above that argument
+/// leaves what `f` computed the same to the bit (a simulation runs on one thread).
+/// [`Table::max_abs_slope`] is not an evaluation: a rope law reads it once, for the
+/// stopping test of its spring's solve, whose result it does not change beyond
+/// rounding. Scopes nest: the enclosing one counts what the inner one reached.
+pub fn reached_during<R>(f: impl FnOnce() -> R) -> (R, Option<f64>) {
+    let outer = REACHED.with(|r| r.replace(f64::NEG_INFINITY));
+    let out = f();
+    let inner = REACHED.with(|r| {
+        let inner = r.get();
+        r.set(outer.max(inner));
+        inner
+    });
+    (out, (inner > f64::NEG_INFINITY).then_some(inner))
+}
 
 /// Most knots a table holds.
 pub const MAX_KNOTS: usize = 12;
@@ -121,6 +157,7 @@ impl Table {
     /// Index of the segment holding `x >= 0` (the last knot's for `x` beyond it).
     #[inline]
     fn segment(&self, x: f64) -> usize {
+        reach(x);
         let mut i = 0;
         while i + 1 < self.n && x >= self.x[i + 1] {
             i += 1;
@@ -151,6 +188,7 @@ impl Table {
     #[inline]
     pub fn eval_slope(&self, x: f64) -> (f64, f64) {
         if x < 0.0 {
+            reach(0.0);
             return (self.y[0], 0.0);
         }
         let i = self.segment(x);
@@ -215,6 +253,7 @@ impl Table {
     #[inline]
     pub fn inverse_integral_inv_value(&self, v: f64) -> (f64, f64) {
         if v <= 0.0 {
+            reach(0.0);
             return (0.0, self.y[0]);
         }
         let mut i = 0;
@@ -223,13 +262,16 @@ impl Table {
         }
         let (xi, y0, m) = (self.x[i], self.y[i], self.slope_of(i));
         let r = v - self.inv[i];
-        if (m * r).abs() <= 1e-12 {
+        let out = if (m * r).abs() <= 1e-12 {
             (xi + r * y0, y0 + m * r * y0)
         } else {
             // ln(1 + m d / y0) / m = r  =>  d = y0 (exp(m r) - 1) / m
             let e = (m * r).exp_m1();
             (xi + y0 * e / m, y0 + y0 * e)
-        }
+        };
+        // (segment `i` was read: its knot's value and the next one's)
+        reach(out.0.max(xi));
+        out
     }
 
     /// The largest `|slope|` of any segment (0 for a constant table).
@@ -282,5 +324,28 @@ mod tests {
         assert!(Table::new(&[0.0], &[1.0]).is_err());
         let e = Table::new(&[0.0, 1.0], &[1.0, f64::NAN]).unwrap_err();
         assert!(e.to_string().contains("finite"), "{e}");
+    }
+
+    /// The largest argument of any evaluation in a scope: an inverse counts the
+    /// argument it finds, a negative argument counts as 0, scopes nest (the outer one
+    /// counts the inner one's), and a scope that evaluates nothing reaches nothing.
+    #[test]
+    fn a_scope_reaches_the_largest_argument_it_evaluated() {
+        let t = Table::new(&[0.0, 100.0, 400.0], &[1.0, 2.0, 3.0]).unwrap();
+        let ((), none) = reached_during(|| ());
+        assert_eq!(none, None);
+        let (_, neg) = reached_during(|| t.eval_slope(-5.0));
+        assert_eq!(neg, Some(0.0));
+        let (x, inv) = reached_during(|| t.inverse_integral_inv(t.integral_inv(250.0)));
+        assert!((x - 250.0).abs() < 1e-9, "{x}");
+        assert_eq!(inv, Some(x.max(250.0)));
+        let ((_, inner), outer) = reached_during(|| {
+            t.eval(30.0);
+            let r = reached_during(|| t.eval(120.0));
+            t.eval(60.0);
+            r
+        });
+        assert_eq!(inner, Some(120.0));
+        assert_eq!(outer, Some(120.0));
     }
 }

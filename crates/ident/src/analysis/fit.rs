@@ -37,9 +37,10 @@ const SIM_CACHE_BYTES: usize = 256 << 20;
 /// per-run value changes its run alone, and a value of a shape-free table changes the
 /// law above the knot before its own only (a rise at knot `k` moves every value from
 /// `k` up; a value, the segments on either side of `k`): a run whose simulation never
-/// took the law's argument above that knot is the same to the bit. The plant bounds
-/// the argument as it simulates ([`crate::plant::Plant::simulate_bounded`]); the
-/// bounds of every point simulated here are kept (a few numbers each).
+/// evaluated the law above that knot is the same to the bit. The plant reports the
+/// largest argument at which each simulation evaluated a table, every evaluation
+/// counted ([`crate::plant::Plant::simulate_bounded`]); the bounds of every point
+/// simulated here are kept (a few numbers each).
 struct SimCache<'p, 'a> {
     prep: &'p Prepared<'a>,
     model: &'p Model,
@@ -162,10 +163,10 @@ impl<'p, 'a> SimCache<'p, 'a> {
         let model = self.model.with_values(x, self.prep.runs.len());
         let sims = std::sync::Arc::new(match self.argument {
             None => self.prep.simulate(&model)?,
-            Some(arg) => {
+            Some(_) => {
                 let (sims, bounds): (Vec<Vec<f64>>, Vec<Option<f64>>) = (0..self.prep.runs.len())
                     .into_par_iter()
-                    .map(|r| self.prep.simulate_run_bounded(&model, r, arg))
+                    .map(|r| self.prep.simulate_run_bounded(&model, r))
                     .collect::<Result<Vec<_>, IdentError>>()?
                     .into_iter()
                     .unzip();
@@ -1470,10 +1471,53 @@ mod tests {
         assert_eq!(cost.to_bits(), held.to_bits());
     }
 
-    /// A forward difference in a value of a stiffness table takes the runs whose
-    /// tension never went above the knot before that value from the centre's residuals,
-    /// and what it gives is the full evaluation's to the bit: those runs were the same.
-    /// The runs taken are those the plant's bound puts below the knot, and a run the
+    /// Every free value of `model` (one shape-free table over `knots`) moved alone: the
+    /// columns taken beside the centre equal the full evaluation to the bit, and the
+    /// runs taken are those whose evaluations of the table stayed below the knot
+    /// before the value's own (the plant's bound). Returns how many runs were taken.
+    fn check_columns_beside(prep: &Prepared<'_>, model: &Model, knots: &[f64]) -> usize {
+        let cache = SimCache::new(prep, model);
+        let problem = Problem { cache: &cache };
+        let specs = model.fit_specs(prep.runs.len());
+        let x: Vec<f64> = specs.iter().map(|s| s.initial).collect();
+        let mut r0 = Vec::new();
+        problem.residuals(&x, &mut r0).unwrap();
+        let bounds = cache.bounds.lock().unwrap()[0].1.clone();
+        assert!(bounds.iter().all(Option::is_some), "{bounds:?}");
+        let mut taken = 0;
+        for (j, slot) in model.free_slots(prep.runs.len()).iter().enumerate() {
+            let mut xj = x.clone();
+            xj[j] += 1e-3 * xj[j].abs().max(1.0);
+            let mut full = Vec::new();
+            problem.residuals(&xj, &mut full).unwrap();
+            let mut beside = Vec::new();
+            let used = problem
+                .residuals_beside(&x, &r0, j, &xj, &mut beside)
+                .unwrap();
+            // (a table whose value at 0 is fixed starts its values at knot 1)
+            let below = match slot.owner {
+                Owner::Shape(e) => {
+                    let sh = model.effects[e].shape.as_ref().unwrap();
+                    let k = slot.index + usize::from(sh.shape.value_at_zero.is_some());
+                    k.checked_sub(1).map_or(0.0, |i| knots[i])
+                }
+                _ => 0.0,
+            };
+            let expected: Vec<bool> = bounds.iter().map(|b| b.unwrap() < below).collect();
+            assert_eq!(used, expected.contains(&true), "value {j}: {bounds:?}");
+            if used {
+                taken += expected.iter().filter(|u| **u).count();
+                assert_eq!(cache.unchanged_runs(&x, j), Some(expected));
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&beside), bits(&full), "value {j}");
+            }
+        }
+        taken
+    }
+
+    /// A stiffness table's forward difference takes the runs whose rope tension never
+    /// went above the knot before that value from the centre's residuals, and what it
+    /// gives is the full evaluation's to the bit: those runs were the same. A run the
     /// value does change is simulated again (the top knot's rise moves the 590 N run).
     #[test]
     fn a_table_value_leaves_the_runs_below_its_knot_as_they_were() {
@@ -1495,40 +1539,61 @@ mod tests {
             .unwrap()
             .with_effect(effect)
             .with_shape(0, sh);
-        let cache = SimCache::new(&prep, &model);
-        assert_eq!(cache.argument, Some(Argument::TensionN));
-        let problem = Problem { cache: &cache };
-        let specs = model.fit_specs(prep.runs.len());
-        let x: Vec<f64> = specs.iter().map(|s| s.initial).collect();
-        let mut r0 = Vec::new();
-        problem.residuals(&x, &mut r0).unwrap();
-        let bounds = cache.bounds.lock().unwrap()[0].1.clone();
-        assert!(bounds.iter().all(Option::is_some), "{bounds:?}");
-        let mut taken = 0;
-        for (j, slot) in model.free_slots(prep.runs.len()).iter().enumerate() {
-            let mut xj = x.clone();
-            xj[j] += 1e-3 * xj[j].abs().max(1.0);
-            let mut full = Vec::new();
-            problem.residuals(&xj, &mut full).unwrap();
-            let mut beside = Vec::new();
-            let used = problem
-                .residuals_beside(&x, &r0, j, &xj, &mut beside)
-                .unwrap();
-            // (the rises follow the fixed value at 0: the rise at knot index + 1)
-            let below = match slot.owner {
-                Owner::Shape(_) => knots[slot.index],
-                _ => 0.0,
-            };
-            let expected: Vec<bool> = bounds.iter().map(|b| b.unwrap() < below).collect();
-            assert_eq!(used, expected.contains(&true), "value {j}: {bounds:?}");
-            if used {
-                taken += expected.iter().filter(|u| **u).count();
-                assert_eq!(cache.unchanged_runs(&x, j), Some(expected));
-                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-                assert_eq!(bits(&beside), bits(&full), "value {j}");
-            }
-        }
+        assert_eq!(
+            SimCache::new(&prep, &model).argument,
+            Some(Argument::TensionN)
+        );
+        let taken = check_columns_beside(&prep, &model, &knots);
         // the 100 N run below 150 N, the 100 and 296 N runs below 300 N, ...
-        assert!(taken >= 3, "{taken} runs taken, bounds {bounds:?}");
+        assert!(taken >= 3, "{taken} runs taken");
+    }
+
+    /// The same on the relay rig, whose inner spans no channel shows: a table of the
+    /// relays' friction coefficient over their hub load, in a short synthetic sweep at
+    /// 49 and 294 N (hub loads near 100 and 600 N). The relay step evaluates the table
+    /// at every Newton iterate; the bound counts them all.
+    #[test]
+    fn a_relay_table_value_leaves_the_runs_below_its_knot_as_they_were() {
+        let ds = Dataset::load(
+            &std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("../../data/examples/example_sweep_stiffening"),
+        )
+        .unwrap();
+        let effect = effects::find("relay_friction").unwrap();
+        let mut truth = Model::baseline(&ds).unwrap().with_effect(effect);
+        truth.effects[0].params[0].value = 0.02;
+        truth.effects[0].params[1].value = 1e-4;
+        let mut opt = crate::synth::SweepOptions::paper("dyneema2", 23);
+        opt.runs = vec![(49.0, 4.5f64.to_radians()), (294.0, 4.5f64.to_radians())];
+        opt.frequencies_hz = vec![1.0, 2.4, 4.5];
+        opt.settle_s = 1.0;
+        opt.min_hold_s = 1.0;
+        opt.tension_channels = true;
+        let relay_ds = Dataset {
+            dir: Default::default(),
+            title: String::new(),
+            kind: crate::DatasetKind::SineSweep(crate::synth::sweep(&truth, &opt).unwrap()),
+        };
+        let prep = Prepared::new(&relay_ds).unwrap();
+        let knots = [0.0, 250.0, 450.0, 700.0, 1000.0];
+        let sh = ShapeUse::new(
+            effect,
+            effect.shape().unwrap(),
+            &knots,
+            &[0.02, 0.02, 0.015, 0.01, 0.01],
+            true,
+        )
+        .unwrap();
+        let model = Model::baseline(&relay_ds)
+            .unwrap()
+            .with_effect(effect)
+            .with_shape(0, sh);
+        assert_eq!(
+            SimCache::new(&prep, &model).argument,
+            Some(Argument::HubLoadN)
+        );
+        let taken = check_columns_beside(&prep, &model, &knots);
+        // the 49 N run below 250 N (values at 450, 700 and 1000 N), the 294 N run not
+        assert!(taken >= 2, "{taken} runs taken");
     }
 }

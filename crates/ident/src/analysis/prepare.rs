@@ -12,7 +12,7 @@
 //! squares, RMS errors and the noise floor in the primary's unit (the floor's SSR is
 //! `sigma_primary^2` per stacked residual).
 
-use longreach_drive::effects::{Argument, DataKind};
+use longreach_drive::effects::DataKind;
 use rayon::prelude::*;
 
 use crate::dataset::{Dataset, DatasetKind};
@@ -350,17 +350,16 @@ impl<'a> Prepared<'a> {
         self.stacked(r, self.plant.simulate(&params, r)?)
     }
 
-    /// [`Self::simulate_run`], and the plant's bound on the values the argument `arg`
-    /// of a shape-free law took in that simulation ([`crate::plant::Plant::simulate_bounded`]).
+    /// [`Self::simulate_run`], and the largest argument at which that simulation
+    /// evaluated a shape-free law's table ([`crate::plant::Plant::simulate_bounded`]).
     pub(crate) fn simulate_run_bounded(
         &self,
         model: &Model,
         r: usize,
-        arg: Argument,
     ) -> Result<(Vec<f64>, Option<f64>), IdentError> {
         self.check_abandoned()?;
         let params = model.plant_params(r)?;
-        let (channels, bound) = self.plant.simulate_bounded(&params, r, arg)?;
+        let (channels, bound) = self.plant.simulate_bounded(&params, r)?;
         Ok((self.stacked(r, channels)?, bound))
     }
 

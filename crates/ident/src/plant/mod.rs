@@ -18,7 +18,7 @@
 
 use std::borrow::Cow;
 
-use longreach_drive::effects::{Argument, DataKind, Site};
+use longreach_drive::effects::{Argument, DataKind};
 use longreach_drive::{rig_transfer, RigSpec as DriveRig};
 use num_complex::Complex64;
 
@@ -91,19 +91,20 @@ pub trait Plant: Send + Sync + std::fmt::Debug {
     /// value per sample, the compared channel first.
     fn simulate(&self, params: &PlantParams, run: usize) -> Result<Channels, IdentError>;
 
-    /// [`Self::simulate`] (the same channels, to the bit), and a bound on the values
-    /// the argument `arg` of a shape-free law took wherever that simulation evaluated
-    /// the law: `Some(top)` when none exceeded `top`, `None` (the default) when the
-    /// plant cannot bound them. A table of the law changed only above `top` leaves the
-    /// run's simulation unchanged to the bit, so a forward difference in such a table
-    /// value need not simulate the run again (`SimCache` in `analysis::fit`).
+    /// [`Self::simulate`] (the same channels, to the bit), and the largest argument at
+    /// which that simulation evaluated a shape-free law's table, every evaluation
+    /// counted (a Newton iterate's too, [`longreach_rope::reached_during`]); `None` when
+    /// it evaluated none. A table changed only above it leaves the run's simulation
+    /// the same to the bit, so a forward difference in such a table value need not
+    /// simulate the run again (`SimCache` in `analysis::fit`). Every table of the model
+    /// counts: one of another argument can only raise the bound, never hide a run.
     fn simulate_bounded(
         &self,
         params: &PlantParams,
         run: usize,
-        _arg: Argument,
     ) -> Result<(Channels, Option<f64>), IdentError> {
-        Ok((self.simulate(params, run)?, None))
+        let (channels, reached) = longreach_rope::reached_during(|| self.simulate(params, run));
+        Ok((channels?, reached))
     }
 
     /// The plant's small-signal response (compared channel over input) of run `run`
@@ -233,27 +234,6 @@ impl Plant for RigPlant<'_> {
         self.channels(params, run, self.sweep_sim(params, run)?)
     }
 
-    /// Tension (the rope law's argument): the rig's two ropes are each one span when
-    /// nothing splits them (no relay friction, no effect on the spans or the relays),
-    /// and their tensions at every sample bound every evaluation of the law once
-    /// widened ([`bound_of`]).
-    fn simulate_bounded(
-        &self,
-        params: &PlantParams,
-        run: usize,
-        arg: Argument,
-    ) -> Result<(Channels, Option<f64>), IdentError> {
-        let s = self.sweep_sim(params, run)?;
-        let one_span = params
-            .effects
-            .iter()
-            .all(|a| matches!(a.effect.site(), Site::RopeLaw | Site::Joint | Site::Sensor));
-        let bound = (arg == Argument::TensionN && one_span)
-            .then(|| bound_of(&[&s.tension_1_n, &s.tension_2_n]))
-            .filter(|b| b.is_finite());
-        Ok((self.channels(params, run, s)?, bound))
-    }
-
     fn small_signal_response(
         &self,
         params: &PlantParams,
@@ -377,21 +357,6 @@ impl SpecimenPlant<'_> {
     }
 }
 
-/// The largest of `series` widened by twice the largest change from one sample to the
-/// next in any of them: a bound on the values a simulation stepping from sample to
-/// sample evaluated in between (a Newton iterate, a substep, stays within a step's
-/// change of its ends).
-fn bound_of(series: &[&[f64]]) -> f64 {
-    let (mut top, mut change) = (f64::NEG_INFINITY, 0.0f64);
-    for t in series {
-        for w in t.windows(2) {
-            change = change.max((w[1] - w[0]).abs());
-        }
-        top = t.iter().fold(top, |a, &b| a.max(b));
-    }
-    top + 2.0 * change
-}
-
 impl Plant for SpecimenPlant<'_> {
     fn kind(&self) -> DataKind {
         match self {
@@ -409,22 +374,6 @@ impl Plant for SpecimenPlant<'_> {
 
     fn simulate(&self, params: &PlantParams, run: usize) -> Result<Channels, IdentError> {
         self.channels(params, run, self.tension(params, run)?)
-    }
-
-    /// Tension (the only argument a specimen has): its tension at every sample, widened
-    /// by twice the largest change from one sample to the next, bounds every
-    /// evaluation of the law (as the rig's, [`RigPlant`]).
-    fn simulate_bounded(
-        &self,
-        params: &PlantParams,
-        run: usize,
-        arg: Argument,
-    ) -> Result<(Channels, Option<f64>), IdentError> {
-        let t = self.tension(params, run)?;
-        let bound = (arg == Argument::TensionN)
-            .then(|| bound_of(&[&t]))
-            .filter(|b| b.is_finite());
-        Ok((self.channels(params, run, t)?, bound))
     }
 
     /// The specimen's tension (the only argument it has).
