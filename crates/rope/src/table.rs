@@ -15,12 +15,13 @@ use serde::{Deserialize, Serialize};
 use crate::error::RopeError;
 
 thread_local! {
-    /// The largest argument at which a table was evaluated on this thread since the
-    /// innermost [`reached_during`] began (`-inf`: none).
+    /// The knot that opens the highest segment in which a table was evaluated on this
+    /// thread since the innermost [`reached_during`] began (`-inf`: none).
     static REACHED: Cell<f64> = const { Cell::new(f64::NEG_INFINITY) };
 }
 
-/// Notes an evaluation of a table at `x` ([`reached_during`]).
+/// Notes an evaluation of a table in the segment that knot `x` opens
+/// ([`reached_during`]).
 #[inline]
 fn reach(x: f64) {
     REACHED.with(|r| {
@@ -30,10 +31,13 @@ fn reach(x: f64) {
     });
 }
 
-/// Runs `f`, and returns with its result the largest argument at which it evaluated any
-/// table on this thread (`None`: it evaluated none). Every evaluation counts, a
-/// Newton iterate's as a converged state's: a table changed only above that argument
-/// leaves what `f` computed the same to the bit (a simulation runs on one thread).
+/// Runs `f`, and returns with its result the knot that opens the highest segment of
+/// any table it evaluated on this thread (`None`: it evaluated none). Every evaluation
+/// counts, a Newton iterate's as a converged state's. The value at knot `k` moves the
+/// law above knot `k - 1` only (the segment from `k - 1` to `k` and beyond), so a
+/// table changed only at knots whose knot before lies above the returned one leaves
+/// what `f` computed the same to the bit (a simulation runs on one thread). Segments,
+/// not arguments, are noted: a knot changes rarely, so the note seldom stores.
 /// [`Table::max_abs_slope`] is not an evaluation: a rope law reads it once, for the
 /// stopping test of its spring's solve, whose result it does not change beyond
 /// rounding. Scopes nest: the enclosing one counts what the inner one reached.
@@ -157,11 +161,11 @@ impl Table {
     /// Index of the segment holding `x >= 0` (the last knot's for `x` beyond it).
     #[inline]
     fn segment(&self, x: f64) -> usize {
-        reach(x);
         let mut i = 0;
         while i + 1 < self.n && x >= self.x[i + 1] {
             i += 1;
         }
+        reach(self.x[i]);
         i
     }
 
@@ -270,7 +274,7 @@ impl Table {
             (xi + y0 * e / m, y0 + y0 * e)
         };
         // (segment `i` was read: its knot's value and the next one's)
-        reach(out.0.max(xi));
+        reach(xi);
         out
     }
 
@@ -326,11 +330,12 @@ mod tests {
         assert!(e.to_string().contains("finite"), "{e}");
     }
 
-    /// The largest argument of any evaluation in a scope: an inverse counts the
-    /// argument it finds, a negative argument counts as 0, scopes nest (the outer one
-    /// counts the inner one's), and a scope that evaluates nothing reaches nothing.
+    /// The knot opening the highest segment evaluated in a scope: an inverse counts the
+    /// segment it finds, a negative argument counts as the first segment, scopes nest
+    /// (the outer one counts the inner one's), and a scope that evaluates nothing
+    /// reaches nothing.
     #[test]
-    fn a_scope_reaches_the_largest_argument_it_evaluated() {
+    fn a_scope_reaches_the_highest_segment_it_evaluated() {
         let t = Table::new(&[0.0, 100.0, 400.0], &[1.0, 2.0, 3.0]).unwrap();
         let ((), none) = reached_during(|| ());
         assert_eq!(none, None);
@@ -338,14 +343,16 @@ mod tests {
         assert_eq!(neg, Some(0.0));
         let (x, inv) = reached_during(|| t.inverse_integral_inv(t.integral_inv(250.0)));
         assert!((x - 250.0).abs() < 1e-9, "{x}");
-        assert_eq!(inv, Some(x.max(250.0)));
+        assert_eq!(inv, Some(100.0));
+        let (_, top) = reached_during(|| t.eval(400.0));
+        assert_eq!(top, Some(400.0));
         let ((_, inner), outer) = reached_during(|| {
             t.eval(30.0);
             let r = reached_during(|| t.eval(120.0));
             t.eval(60.0);
             r
         });
-        assert_eq!(inner, Some(120.0));
-        assert_eq!(outer, Some(120.0));
+        assert_eq!(inner, Some(100.0));
+        assert_eq!(outer, Some(100.0));
     }
 }

@@ -38,9 +38,9 @@ const SIM_CACHE_BYTES: usize = 256 << 20;
 /// law above the knot before its own only (a rise at knot `k` moves every value from
 /// `k` up; a value, the segments on either side of `k`): a run whose simulation never
 /// evaluated the law above that knot is the same to the bit. The plant reports the
-/// largest argument at which each simulation evaluated a table, every evaluation
-/// counted ([`crate::plant::Plant::simulate_bounded`]); the bounds of every point
-/// simulated here are kept (a few numbers each).
+/// knot opening the highest segment in which each simulation evaluated a table, every
+/// evaluation counted ([`crate::plant::Plant::simulate_bounded`]); the bounds of every
+/// point simulated here are kept (a few numbers each).
 struct SimCache<'p, 'a> {
     prep: &'p Prepared<'a>,
     model: &'p Model,

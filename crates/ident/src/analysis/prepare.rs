@@ -350,8 +350,9 @@ impl<'a> Prepared<'a> {
         self.stacked(r, self.plant.simulate(&params, r)?)
     }
 
-    /// [`Self::simulate_run`], and the largest argument at which that simulation
-    /// evaluated a shape-free law's table ([`crate::plant::Plant::simulate_bounded`]).
+    /// [`Self::simulate_run`], and the knot opening the highest segment in which that
+    /// simulation evaluated a shape-free law's table
+    /// ([`crate::plant::Plant::simulate_bounded`]).
     pub(crate) fn simulate_run_bounded(
         &self,
         model: &Model,

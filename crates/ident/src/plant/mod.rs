@@ -91,13 +91,14 @@ pub trait Plant: Send + Sync + std::fmt::Debug {
     /// value per sample, the compared channel first.
     fn simulate(&self, params: &PlantParams, run: usize) -> Result<Channels, IdentError>;
 
-    /// [`Self::simulate`] (the same channels, to the bit), and the largest argument at
-    /// which that simulation evaluated a shape-free law's table, every evaluation
-    /// counted (a Newton iterate's too, [`longreach_rope::reached_during`]); `None` when
-    /// it evaluated none. A table changed only above it leaves the run's simulation
-    /// the same to the bit, so a forward difference in such a table value need not
-    /// simulate the run again (`SimCache` in `analysis::fit`). Every table of the model
-    /// counts: one of another argument can only raise the bound, never hide a run.
+    /// [`Self::simulate`] (the same channels, to the bit), and the knot opening the
+    /// highest segment in which that simulation evaluated a shape-free law's table,
+    /// every evaluation counted (a Newton iterate's too,
+    /// [`longreach_rope::reached_during`]); `None` when it evaluated none. A table value
+    /// whose knot before lies above it leaves the run's simulation the same to the bit,
+    /// so a forward difference in that value need not simulate the run again
+    /// (`SimCache` in `analysis::fit`). Every table of the model counts: one of another
+    /// argument can only raise the bound, never hide a run.
     fn simulate_bounded(
         &self,
         params: &PlantParams,
