@@ -74,6 +74,35 @@ impl SweepOptions {
     }
 }
 
+/// A short synthetic sweep (tests): the baseline `base` (the paper's dyneema2 rig)
+/// with `relay_friction` hidden at coefficient 0.02 and inertia 1e-4 kg*m^2, tension
+/// channels recorded, `runs` as `(mean tension N, amplitude rad)`, each frequency held
+/// `hold_s`.
+#[cfg(test)]
+pub(crate) fn short_relay_sweep(
+    base: &Model,
+    seed: u64,
+    runs: Vec<(f64, f64)>,
+    frequencies_hz: Vec<f64>,
+    hold_s: f64,
+) -> crate::Dataset {
+    let effect = longreach_drive::effects::find("relay_friction").expect("registered");
+    let mut truth = base.with_effect(effect);
+    truth.effects[0].params[0].value = 0.02;
+    truth.effects[0].params[1].value = 1e-4;
+    let mut opt = SweepOptions::paper("dyneema2", seed);
+    opt.runs = runs;
+    opt.frequencies_hz = frequencies_hz;
+    opt.settle_s = hold_s;
+    opt.min_hold_s = hold_s;
+    opt.tension_channels = true;
+    crate::Dataset {
+        dir: Default::default(),
+        title: String::new(),
+        kind: crate::DatasetKind::SineSweep(sweep(&truth, &opt).expect("a valid sweep")),
+    }
+}
+
 /// Simulates `model` (its values for run `r` apply to run `r`) on the options' schedule
 /// and writes nothing: returns the dataset (write it with [`SweepDataset::write`]).
 pub fn sweep(model: &Model, opt: &SweepOptions) -> Result<SweepDataset, IdentError> {

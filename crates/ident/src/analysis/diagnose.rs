@@ -2760,20 +2760,13 @@ mod tests {
         assert_eq!(after, ahead);
         // a relay-rig candidate leads (relay friction hidden in a short synthetic
         // sweep): the plain rig's best, fitted ahead, is abandoned
-        let mut truth = base.with_effect(find("relay_friction"));
-        truth.effects[0].params[0].value = 0.02;
-        truth.effects[0].params[1].value = 1e-4;
-        let mut opt = crate::synth::SweepOptions::paper("dyneema2", 17);
-        opt.runs = vec![(147.0, 4.5f64.to_radians()), (147.0, 1.5f64.to_radians())];
-        opt.frequencies_hz = vec![1.0, 1.8, 2.4, 3.0, 3.5, 4.5];
-        opt.settle_s = 2.0;
-        opt.min_hold_s = 2.0;
-        opt.tension_channels = true;
-        let relay_ds = Dataset {
-            dir: Default::default(),
-            title: String::new(),
-            kind: crate::DatasetKind::SineSweep(crate::synth::sweep(&truth, &opt).unwrap()),
-        };
+        let relay_ds = crate::synth::short_relay_sweep(
+            &base,
+            17,
+            vec![(147.0, 4.5f64.to_radians()), (147.0, 1.5f64.to_radians())],
+            vec![1.0, 1.8, 2.4, 3.0, 3.5, 4.5],
+            2.0,
+        );
         let prep = Prepared::new(&relay_ds).unwrap();
         let models = [one("joint_friction"), one("relay_friction")];
         let after = summary(led_fits_ahead(&prep, &models, 0.0, false));

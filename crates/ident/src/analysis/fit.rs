@@ -1554,26 +1554,17 @@ mod tests {
     /// at every Newton iterate; the bound counts them all.
     #[test]
     fn a_relay_table_value_leaves_the_runs_below_its_knot_as_they_were() {
-        let ds = Dataset::load(
-            &std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("../../data/examples/example_sweep_stiffening"),
-        )
-        .unwrap();
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../data/examples/example_sweep_stiffening");
+        let ds = Dataset::load(&dir).unwrap();
         let effect = effects::find("relay_friction").unwrap();
-        let mut truth = Model::baseline(&ds).unwrap().with_effect(effect);
-        truth.effects[0].params[0].value = 0.02;
-        truth.effects[0].params[1].value = 1e-4;
-        let mut opt = crate::synth::SweepOptions::paper("dyneema2", 23);
-        opt.runs = vec![(49.0, 4.5f64.to_radians()), (294.0, 4.5f64.to_radians())];
-        opt.frequencies_hz = vec![1.0, 2.4, 4.5];
-        opt.settle_s = 1.0;
-        opt.min_hold_s = 1.0;
-        opt.tension_channels = true;
-        let relay_ds = Dataset {
-            dir: Default::default(),
-            title: String::new(),
-            kind: crate::DatasetKind::SineSweep(crate::synth::sweep(&truth, &opt).unwrap()),
-        };
+        let relay_ds = crate::synth::short_relay_sweep(
+            &Model::baseline(&ds).unwrap(),
+            23,
+            vec![(49.0, 4.5f64.to_radians()), (294.0, 4.5f64.to_radians())],
+            vec![1.0, 2.4, 4.5],
+            1.0,
+        );
         let prep = Prepared::new(&relay_ds).unwrap();
         let knots = [0.0, 250.0, 450.0, 700.0, 1000.0];
         let sh = ShapeUse::new(
