@@ -1471,12 +1471,26 @@ mod tests {
         assert_eq!(cost.to_bits(), held.to_bits());
     }
 
-    /// Every free value of `model` (one shape-free table over `knots`) moved alone: the
-    /// columns taken beside the centre equal the full evaluation to the bit, and the
-    /// runs taken are those whose evaluations of the table stayed below the knot
-    /// before the value's own (the plant's bound). Returns how many runs were taken.
-    fn check_columns_beside(prep: &Prepared<'_>, model: &Model, knots: &[f64]) -> usize {
-        let cache = SimCache::new(prep, model);
+    /// The baseline of `ds` with `effect`'s law as a table of `values` over `knots`
+    /// (its argument `argument`), every free value moved alone: the columns taken
+    /// beside the centre equal the full evaluation to the bit, and the runs taken are
+    /// those whose evaluations of the table stayed below the knot before the value's
+    /// own (the plant's bound). Returns how many runs were taken.
+    fn check_columns_beside(
+        ds: &Dataset,
+        effect: &'static dyn effects::Effect,
+        knots: &[f64],
+        values: &[f64],
+        argument: Argument,
+    ) -> usize {
+        let prep = Prepared::new(ds).unwrap();
+        let sh = ShapeUse::new(effect, effect.shape().unwrap(), knots, values, true).unwrap();
+        let model = Model::baseline(ds)
+            .unwrap()
+            .with_effect(effect)
+            .with_shape(0, sh);
+        let cache = SimCache::new(&prep, &model);
+        assert_eq!(cache.argument, Some(argument));
         let problem = Problem { cache: &cache };
         let specs = model.fit_specs(prep.runs.len());
         let x: Vec<f64> = specs.iter().map(|s| s.initial).collect();
@@ -1524,26 +1538,13 @@ mod tests {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../data/examples/example_sweep_stiffening");
         let ds = Dataset::load(&dir).unwrap();
-        let prep = Prepared::new(&ds).unwrap();
-        let effect = effects::find("nonlinear_stiffness").unwrap();
-        let knots = [0.0, 150.0, 300.0, 450.0, 600.0];
-        let sh = ShapeUse::new(
-            effect,
-            effect.shape().unwrap(),
-            &knots,
+        let taken = check_columns_beside(
+            &ds,
+            effects::find("nonlinear_stiffness").unwrap(),
+            &[0.0, 150.0, 300.0, 450.0, 600.0],
             &[1.0, 1.3, 1.5, 1.6, 1.7],
-            true,
-        )
-        .unwrap();
-        let model = Model::baseline(&ds)
-            .unwrap()
-            .with_effect(effect)
-            .with_shape(0, sh);
-        assert_eq!(
-            SimCache::new(&prep, &model).argument,
-            Some(Argument::TensionN)
+            Argument::TensionN,
         );
-        let taken = check_columns_beside(&prep, &model, &knots);
         // the 100 N run below 150 N, the 100 and 296 N runs below 300 N, ...
         assert!(taken >= 3, "{taken} runs taken");
     }
@@ -1557,7 +1558,6 @@ mod tests {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../data/examples/example_sweep_stiffening");
         let ds = Dataset::load(&dir).unwrap();
-        let effect = effects::find("relay_friction").unwrap();
         let relay_ds = crate::synth::short_relay_sweep(
             &Model::baseline(&ds).unwrap(),
             23,
@@ -1565,25 +1565,13 @@ mod tests {
             vec![1.0, 2.4, 4.5],
             1.0,
         );
-        let prep = Prepared::new(&relay_ds).unwrap();
-        let knots = [0.0, 250.0, 450.0, 700.0, 1000.0];
-        let sh = ShapeUse::new(
-            effect,
-            effect.shape().unwrap(),
-            &knots,
+        let taken = check_columns_beside(
+            &relay_ds,
+            effects::find("relay_friction").unwrap(),
+            &[0.0, 250.0, 450.0, 700.0, 1000.0],
             &[0.02, 0.02, 0.015, 0.01, 0.01],
-            true,
-        )
-        .unwrap();
-        let model = Model::baseline(&relay_ds)
-            .unwrap()
-            .with_effect(effect)
-            .with_shape(0, sh);
-        assert_eq!(
-            SimCache::new(&prep, &model).argument,
-            Some(Argument::HubLoadN)
+            Argument::HubLoadN,
         );
-        let taken = check_columns_beside(&prep, &model, &knots);
         // the 49 N run below 250 N (values at 450, 700 and 1000 N), the 294 N run not
         assert!(taken >= 2, "{taken} runs taken");
     }
