@@ -1,0 +1,173 @@
+#!/usr/bin/env python3
+"""Sine sweeps of the paper's rig made by another simulator: MuJoCo integrates the output
+pulley (its inertia, its shaft's viscous damping and, with --frictionloss, MuJoCo's own
+dry friction, a soft constraint rather than longreach's tanh law); the ropes are elastic
+(stainless1, k1 = 1.37e5 N per unit strain) on a constant-force tensioner, written here
+in closed form. Nothing of longreach's code is used: the datasets are data longreach did
+not make, in the measured-data format (docs/models.md, "An independent simulator").
+
+A massless constant-force carriage keeps tension_1 + tension_2 = 2 T0 while both ropes
+are taut; when one goes slack the other carries 2 T0. With the stretch difference
+d = r1 theta - r2 phi and the rope rate K = k1 / L the output pulley feels
+
+    tau = r2 * clamp(2 K d, -2 T0, 2 T0),   T1 = T0 + tau / (2 r2),  T2 = 2 T0 - T1
+
+The input pulley follows the command exactly (a kinematic drive); the encoders
+quantise both angles to 0.18 deg, the load cells add Gaussian noise.
+
+Usage (needs `pip install mujoco==4.0.0 numpy`):
+    mujoco_rig_sweep.py --out DIR [--frictionloss N_M] [--tensions 49,98,196,294,392]
+                        [--seed S] [--dt 2e-4] [--tension-noise 0.5]
+"""
+
+import argparse
+import math
+import os
+import sys
+
+import mujoco
+import numpy as np
+
+R1 = R2 = 0.025
+INERTIA = 0.0284
+DAMPING = 0.05
+LENGTH = 15.2
+K1 = 1.37e5
+AMPLITUDE = math.radians(4.5)
+SETTLE = 3.0
+SAMPLE = 0.005
+ENCODER = math.radians(0.18)
+# the paper's frequency steps (Hz), each held SETTLE s plus at least two cycles (and 5 s)
+FREQUENCIES = [0.1, 0.2, 0.4, 0.7, 1.0, 1.4, 1.8, 2.1, 2.4, 2.7, 3.0, 3.3, 3.6, 4.0, 4.5, 5.0, 6.0]
+
+XML = """
+<mujoco model="rig_output">
+  <option timestep="{dt}" integrator="implicitfast" gravity="0 0 0"/>
+  <worldbody>
+    <body name="output_pulley">
+      <joint name="phi" type="hinge" axis="0 1 0" damping="{damping}" frictionloss="{friction}"/>
+      <inertial pos="0 0 0" mass="1" diaginertia="{inertia} {inertia} {inertia}"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def schedule():
+    """(start time, duration, frequency) of every step; the run's length."""
+    steps, t = [], 0.0
+    for f in FREQUENCIES:
+        d = max(5.0, SETTLE + 2.0 / f)
+        d = math.ceil(d / SAMPLE) * SAMPLE
+        steps.append((t, d, f))
+        t += d
+    return steps, t
+
+
+def command(t, steps):
+    """Commanded angle and rate at time t: a sine whose phase is continuous across steps."""
+    phase = 0.0
+    for start, d, f in steps:
+        if t < start + d or (start, d, f) == steps[-1]:
+            p = phase + 2.0 * math.pi * f * (t - start)
+            w = 2.0 * math.pi * f
+            return AMPLITUDE * math.sin(p), AMPLITUDE * w * math.cos(p), f
+        phase += 2.0 * math.pi * f * d
+    raise AssertionError("unreachable")
+
+
+def rope_torque(theta, phi, t0):
+    k = K1 / LENGTH
+    d = R1 * theta - R2 * phi
+    pull = min(max(2.0 * k * d, -2.0 * t0), 2.0 * t0)
+    return R2 * pull, t0 + 0.5 * pull
+
+
+def run(t0, dt, friction, rng, tension_noise):
+    model = mujoco.MjModel.from_xml_string(
+        XML.format(dt=dt, damping=DAMPING, friction=friction, inertia=INERTIA)
+    )
+    data = mujoco.MjData(model)
+    steps, total = schedule()
+    n = int(round(total / SAMPLE))
+    per = int(round(SAMPLE / dt))
+    if abs(per * dt - SAMPLE) > 1e-12:
+        sys.exit(f"--dt must divide the sample period {SAMPLE} s")
+    rows = []
+    for i in range(n):
+        t = i * SAMPLE
+        theta, _, f = command(t, steps)
+        _, t1 = rope_torque(theta, data.qpos[0], t0)
+        t2 = 2.0 * t0 - t1
+        q = lambda a: round(a / ENCODER) * ENCODER
+        noise = rng.normal(0.0, tension_noise, 4)
+        rows.append(
+            (t, f, theta, q(theta), q(data.qpos[0]), t1 + noise[0], t2 + noise[1], t1 + noise[2], t2 + noise[3])
+        )
+        for k in range(per):
+            # the rope torque at the step's midpoint input and its start angle
+            th, _, _ = command(t + (k + 0.5) * dt, steps)
+            tau, _ = rope_torque(th, data.qpos[0], t0)
+            data.qfrc_applied[0] = tau
+            mujoco.mj_step(model, data)
+            if not math.isfinite(data.qpos[0]):
+                sys.exit(f"MuJoCo blew up at t = {t} s")
+    return rows
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--frictionloss", type=float, default=0.0, help="MuJoCo dry friction on the output shaft [N*m]")
+    ap.add_argument("--tensions", default="49,98,196,294,392")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--dt", type=float, default=2e-4)
+    ap.add_argument("--tension-noise", type=float, default=0.5)
+    a = ap.parse_args()
+    rng = np.random.default_rng(a.seed)
+    os.makedirs(a.out, exist_ok=True)
+    tensions = [float(x) for x in a.tensions.split(",")]
+    toml = [
+        'format = "longreach-measurement/1"',
+        'kind = "sine_sweep"',
+        f'title = "MuJoCo {mujoco.__version__} rig, stainless1, frictionloss {a.frictionloss} N*m, seed {a.seed}"',
+        "",
+        "[rig]",
+        'rope = "stainless1"',
+        f"rope_length_m = {LENGTH}",
+        f"input_radius_m = {R1}",
+        f"output_radius_m = {R2}",
+        f"output_inertia_kg_m2 = {INERTIA}",
+        f"output_damping_n_m_s = {DAMPING}",
+        "relay_pulleys = 3",
+        "relay_radius_m = 0.025",
+        'tensioner = "constant_force"',
+    ]
+    for j, t0 in enumerate(tensions):
+        name = f"run_{j + 1:02d}.csv"
+        rows = run(t0, a.dt, a.frictionloss, rng, a.tension_noise)
+        with open(os.path.join(a.out, name), "w") as fh:
+            fh.write(
+                "time_s,frequency_hz,command_rad,input_angle_rad,output_angle_rad,"
+                "tension_in_1_n,tension_in_2_n,tension_out_1_n,tension_out_2_n\n"
+            )
+            for r in rows:
+                fh.write(
+                    f"{r[0]:.3f},{r[1]:.2f},{r[2]:.7f},{r[3]:.7f},{r[4]:.7f},"
+                    f"{r[5]:.2f},{r[6]:.2f},{r[7]:.2f},{r[8]:.2f}\n"
+                )
+        toml += [
+            "",
+            "[[run]]",
+            f'file = "{name}"',
+            f"mean_tension_n = {t0}",
+            f"amplitude_rad = {AMPLITUDE}",
+            f"settle_s = {SETTLE}",
+        ]
+        print(f"{name}: {len(rows)} samples at T0 = {t0} N", file=sys.stderr)
+    with open(os.path.join(a.out, "dataset.toml"), "w") as fh:
+        fh.write("\n".join(toml) + "\n")
+
+
+if __name__ == "__main__":
+    main()
