@@ -15,9 +15,14 @@ d = r1 theta - r2 phi and the rope rate K = k1 / L the output pulley feels
 The input pulley follows the command exactly (a kinematic drive); the encoders
 quantise both angles to 0.18 deg, the load cells add Gaussian noise.
 
+With --load-inertia J the output is two inertias, the pulley (I - J) and a load J
+behind a torsional shaft (--shaft-stiffness, --shaft-damping): a second mode that no
+effect of the catalog holds; the encoder reads the pulley.
+
 Usage (needs `pip install mujoco==4.0.0 numpy`):
     mujoco_rig_sweep.py --out DIR [--frictionloss N_M] [--tensions 49,98,196,294,392]
                         [--seed S] [--dt 2e-4] [--tension-noise 0.5]
+                        [--load-inertia J --shaft-stiffness K --shaft-damping C]
 """
 
 import argparse
@@ -48,9 +53,25 @@ XML = """
       <joint name="phi" type="hinge" axis="0 1 0" damping="{damping}" frictionloss="{friction}"/>
       <inertial pos="0 0 0" mass="1" diaginertia="{inertia} {inertia} {inertia}"/>
     </body>
+    {load}
   </worldbody>
+  {shaft}
 </mujoco>
 """
+
+# With --load-inertia: the output pulley (its share I - I_load) drives a load of
+# inertia I_load through a torsional shaft of stiffness k_s (a second mode the
+# catalog has no effect for); the encoder reads the pulley.
+LOAD = """<body name="load">
+      <joint name="psi" type="hinge" axis="0 1 0"/>
+      <inertial pos="0 0 0" mass="1" diaginertia="{i} {i} {i}"/>
+    </body>"""
+SHAFT = """<tendon>
+    <fixed name="shaft" stiffness="{k}" damping="{c}">
+      <joint joint="phi" coef="1"/>
+      <joint joint="psi" coef="-1"/>
+    </fixed>
+  </tendon>"""
 
 
 def schedule():
@@ -83,9 +104,18 @@ def rope_torque(theta, phi, t0):
     return R2 * pull, t0 + 0.5 * pull
 
 
-def run(t0, dt, friction, rng, tension_noise):
+def run(t0, dt, friction, rng, tension_noise, load_inertia, shaft_k, shaft_c):
+    load = LOAD.format(i=load_inertia) if load_inertia > 0.0 else ""
+    shaft = SHAFT.format(k=shaft_k, c=shaft_c) if load_inertia > 0.0 else ""
     model = mujoco.MjModel.from_xml_string(
-        XML.format(dt=dt, damping=DAMPING, friction=friction, inertia=INERTIA)
+        XML.format(
+            dt=dt,
+            damping=DAMPING,
+            friction=friction,
+            inertia=INERTIA - load_inertia,
+            load=load,
+            shaft=shaft,
+        )
     )
     data = mujoco.MjData(model)
     steps, total = schedule()
@@ -123,14 +153,24 @@ def main():
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--dt", type=float, default=2e-4)
     ap.add_argument("--tension-noise", type=float, default=0.5)
+    ap.add_argument("--load-inertia", type=float, default=0.0, help="part of I behind a torsional shaft [kg*m^2]")
+    ap.add_argument("--shaft-stiffness", type=float, default=40.0, help="the shaft's k_s [N*m/rad]")
+    ap.add_argument("--shaft-damping", type=float, default=0.01, help="the shaft's damping [N*m*s/rad]")
     a = ap.parse_args()
+    if not 0.0 <= a.load_inertia < INERTIA:
+        sys.exit(f"--load-inertia must lie in [0, {INERTIA})")
     rng = np.random.default_rng(a.seed)
     os.makedirs(a.out, exist_ok=True)
     tensions = [float(x) for x in a.tensions.split(",")]
+    load = (
+        f"load {a.load_inertia} kg*m^2 on a {a.shaft_stiffness} N*m/rad shaft, "
+        if a.load_inertia > 0.0
+        else ""
+    )
     toml = [
         'format = "longreach-measurement/1"',
         'kind = "sine_sweep"',
-        f'title = "MuJoCo {mujoco.__version__} rig, stainless1, frictionloss {a.frictionloss} N*m, seed {a.seed}"',
+        f'title = "MuJoCo {mujoco.__version__} rig, stainless1, frictionloss {a.frictionloss} N*m, {load}seed {a.seed}"',
         "",
         "[rig]",
         'rope = "stainless1"',
@@ -145,7 +185,7 @@ def main():
     ]
     for j, t0 in enumerate(tensions):
         name = f"run_{j + 1:02d}.csv"
-        rows = run(t0, a.dt, a.frictionloss, rng, a.tension_noise)
+        rows = run(t0, a.dt, a.frictionloss, rng, a.tension_noise, a.load_inertia, a.shaft_stiffness, a.shaft_damping)
         with open(os.path.join(a.out, name), "w") as fh:
             fh.write(
                 "time_s,frequency_hz,command_rad,input_angle_rad,output_angle_rad,"
