@@ -23,6 +23,7 @@ Usage (needs `pip install mujoco==4.0.0 numpy`):
     mujoco_rig_sweep.py --out DIR [--frictionloss N_M] [--tensions 49,98,196,294,392]
                         [--seed S] [--dt 2e-4] [--tension-noise 0.5]
                         [--load-inertia J --shaft-stiffness K --shaft-damping C]
+                        [--true-damping C_TRUE]
 """
 
 import argparse
@@ -104,13 +105,13 @@ def rope_torque(theta, phi, t0):
     return R2 * pull, t0 + 0.5 * pull
 
 
-def run(t0, dt, friction, rng, tension_noise, load_inertia, shaft_k, shaft_c):
+def run(t0, dt, friction, rng, tension_noise, load_inertia, shaft_k, shaft_c, damping):
     load = LOAD.format(i=load_inertia) if load_inertia > 0.0 else ""
     shaft = SHAFT.format(k=shaft_k, c=shaft_c) if load_inertia > 0.0 else ""
     model = mujoco.MjModel.from_xml_string(
         XML.format(
             dt=dt,
-            damping=DAMPING,
+            damping=damping,
             friction=friction,
             inertia=INERTIA - load_inertia,
             load=load,
@@ -156,6 +157,12 @@ def main():
     ap.add_argument("--load-inertia", type=float, default=0.0, help="part of I behind a torsional shaft [kg*m^2]")
     ap.add_argument("--shaft-stiffness", type=float, default=40.0, help="the shaft's k_s [N*m/rad]")
     ap.add_argument("--shaft-damping", type=float, default=0.01, help="the shaft's damping [N*m*s/rad]")
+    ap.add_argument(
+        "--true-damping",
+        type=float,
+        default=None,
+        help="the output shaft's viscous damping MuJoCo simulates [N*m*s]; the dataset states C = 0.05",
+    )
     a = ap.parse_args()
     if not 0.0 <= a.load_inertia < INERTIA:
         sys.exit(f"--load-inertia must lie in [0, {INERTIA})")
@@ -185,7 +192,17 @@ def main():
     ]
     for j, t0 in enumerate(tensions):
         name = f"run_{j + 1:02d}.csv"
-        rows = run(t0, a.dt, a.frictionloss, rng, a.tension_noise, a.load_inertia, a.shaft_stiffness, a.shaft_damping)
+        rows = run(
+            t0,
+            a.dt,
+            a.frictionloss,
+            rng,
+            a.tension_noise,
+            a.load_inertia,
+            a.shaft_stiffness,
+            a.shaft_damping,
+            DAMPING if a.true_damping is None else a.true_damping,
+        )
         with open(os.path.join(a.out, name), "w") as fh:
             fh.write(
                 "time_s,frequency_hz,command_rad,input_angle_rad,output_angle_rad,"
