@@ -341,9 +341,9 @@ fn a_mujoco_sweep_names_its_dry_friction_and_its_control_nothing() {
 
 /// An effect outside the catalog in data longreach did not make: MuJoCo's rig whose
 /// output is two inertias, the pulley and a load of 0.02 kg*m^2 behind a 40 N*m/rad
-/// shaft (a second mode near 8 Hz, above the sweep), the encoder on the pulley. The
-/// model misses the data far above the floor, and nothing is named: no effect of the
-/// catalog explains even a tenth of the excess.
+/// shaft (modes at 2.96 and 14 Hz, the second above the sweep), the encoder on the
+/// pulley. The model misses the data far above the floor, and nothing is named: no
+/// effect of the catalog explains even a tenth of the excess.
 #[test]
 fn a_mujoco_sweep_with_a_second_mode_names_nothing() {
     let ds = Dataset::load(example("example_mujoco_shaft")).unwrap();
