@@ -164,11 +164,25 @@ def main():
         help="the output shaft's viscous damping MuJoCo simulates [N*m*s]; the dataset states C = 0.05",
     )
     a = ap.parse_args()
+    # (every argument checked before anything is written)
     if not 0.0 <= a.load_inertia < INERTIA:
         sys.exit(f"--load-inertia must lie in [0, {INERTIA})")
+    if not (a.dt > 0.0 and abs(round(SAMPLE / a.dt) * a.dt - SAMPLE) <= 1e-12):
+        sys.exit(f"--dt must divide the sample period {SAMPLE} s, got {a.dt}")
+    try:
+        tensions = [float(x) for x in a.tensions.split(",")]
+    except ValueError:
+        sys.exit(f"--tensions must be numbers in N separated by commas, got {a.tensions!r}")
+    if not all(t > 0.0 and math.isfinite(t) for t in tensions):
+        sys.exit(f"--tensions must be positive, got {a.tensions!r}")
+    for name in ("frictionloss", "tension_noise", "shaft_stiffness", "shaft_damping"):
+        v = getattr(a, name)
+        if not (v >= 0.0 and math.isfinite(v)):
+            sys.exit(f"--{name.replace('_', '-')} must be >= 0, got {v}")
+    if a.true_damping is not None and not (a.true_damping >= 0.0 and math.isfinite(a.true_damping)):
+        sys.exit(f"--true-damping must be >= 0, got {a.true_damping}")
     rng = np.random.default_rng(a.seed)
     os.makedirs(a.out, exist_ok=True)
-    tensions = [float(x) for x in a.tensions.split(",")]
     load = (
         f"load {a.load_inertia} kg*m^2 on a {a.shaft_stiffness} N*m/rad shaft, "
         if a.load_inertia > 0.0
