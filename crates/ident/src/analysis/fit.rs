@@ -1371,6 +1371,13 @@ mod tests {
         m
     }
 
+    /// The shipped example `example_sweep_stiffening`.
+    fn stiffening_example() -> Dataset {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../data/examples/example_sweep_stiffening");
+        Dataset::load(&dir).unwrap()
+    }
+
     /// (owner effect's name or "base", parameter index) of every gridded parameter.
     fn gridded_names(m: &Model) -> Vec<(String, usize)> {
         let slots: Vec<Slot> = m.free_slots(1);
@@ -1430,9 +1437,7 @@ mod tests {
     /// half.
     #[test]
     fn a_hidden_scan_weighs_the_runs_that_hold_half_the_error() {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../data/examples/example_sweep_stiffening");
-        let ds = Dataset::load(&dir).unwrap();
+        let ds = stiffening_example();
         let prep = Prepared::new(&ds).unwrap();
         let model = Model::baseline(&ds).unwrap();
         let cache = SimCache::new(&prep, &model);
@@ -1535,9 +1540,7 @@ mod tests {
     /// value does change is simulated again (the top knot's rise moves the 590 N run).
     #[test]
     fn a_table_value_leaves_the_runs_below_its_knot_as_they_were() {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../data/examples/example_sweep_stiffening");
-        let ds = Dataset::load(&dir).unwrap();
+        let ds = stiffening_example();
         let taken = check_columns_beside(
             &ds,
             effects::find("nonlinear_stiffness").unwrap(),
@@ -1555,9 +1558,7 @@ mod tests {
     /// at every Newton iterate; the bound counts them all.
     #[test]
     fn a_relay_table_value_leaves_the_runs_below_its_knot_as_they_were() {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../data/examples/example_sweep_stiffening");
-        let ds = Dataset::load(&dir).unwrap();
+        let ds = stiffening_example();
         let relay_ds = crate::synth::short_relay_sweep(
             &Model::baseline(&ds).unwrap(),
             23,
