@@ -76,26 +76,30 @@ SHAFT = """<tendon>
 
 
 def schedule():
-    """(start time, duration, frequency) of every step; the run's length."""
-    steps, t = [], 0.0
+    """(start time, duration, frequency, phase at the start) of every step; the run's
+    length."""
+    steps, t, phase = [], 0.0, 0.0
     for f in FREQUENCIES:
         d = max(5.0, SETTLE + 2.0 / f)
         d = math.ceil(d / SAMPLE) * SAMPLE
-        steps.append((t, d, f))
+        steps.append((t, d, f, phase))
         t += d
+        phase += 2.0 * math.pi * f * d
     return steps, t
 
 
 def command(t, steps):
-    """Commanded angle and rate at time t: a sine whose phase is continuous across steps."""
-    phase = 0.0
-    for start, d, f in steps:
-        if t < start + d or (start, d, f) == steps[-1]:
-            p = phase + 2.0 * math.pi * f * (t - start)
-            w = 2.0 * math.pi * f
-            return AMPLITUDE * math.sin(p), AMPLITUDE * w * math.cos(p), f
-        phase += 2.0 * math.pi * f * d
-    raise AssertionError("unreachable")
+    """Commanded angle and frequency at time t: a sine whose phase is continuous across
+    steps (the last step's beyond the schedule)."""
+    for start, d, f, phase in steps:
+        if t < start + d:
+            break
+    return AMPLITUDE * math.sin(phase + 2.0 * math.pi * f * (t - start)), f
+
+
+def quantise(a):
+    """An encoder's reading of angle a."""
+    return round(a / ENCODER) * ENCODER
 
 
 def rope_torque(theta, phi, t0):
@@ -121,23 +125,20 @@ def run(t0, dt, friction, rng, tension_noise, load_inertia, shaft_k, shaft_c, da
     data = mujoco.MjData(model)
     steps, total = schedule()
     n = int(round(total / SAMPLE))
-    per = int(round(SAMPLE / dt))
-    if abs(per * dt - SAMPLE) > 1e-12:
-        sys.exit(f"--dt must divide the sample period {SAMPLE} s")
+    per = int(round(SAMPLE / dt))  # (main checked that dt divides the sample period)
     rows = []
     for i in range(n):
         t = i * SAMPLE
-        theta, _, f = command(t, steps)
+        theta, f = command(t, steps)
         _, t1 = rope_torque(theta, data.qpos[0], t0)
         t2 = 2.0 * t0 - t1
-        q = lambda a: round(a / ENCODER) * ENCODER
         noise = rng.normal(0.0, tension_noise, 4)
         rows.append(
-            (t, f, theta, q(theta), q(data.qpos[0]), t1 + noise[0], t2 + noise[1], t1 + noise[2], t2 + noise[3])
+            (t, f, theta, quantise(theta), quantise(data.qpos[0]), t1 + noise[0], t2 + noise[1], t1 + noise[2], t2 + noise[3])
         )
         for k in range(per):
             # the rope torque at the step's midpoint input and its start angle
-            th, _, _ = command(t + (k + 0.5) * dt, steps)
+            th, _ = command(t + (k + 0.5) * dt, steps)
             tau, _ = rope_torque(th, data.qpos[0], t0)
             data.qfrc_applied[0] = tau
             mujoco.mj_step(model, data)
