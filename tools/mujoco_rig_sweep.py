@@ -15,6 +15,14 @@ d = r1 theta - r2 phi and the rope rate K = k1 / L the output pulley feels
 The input pulley follows the command exactly (a kinematic drive); the encoders
 quantise both angles to 0.18 deg, the load cells add Gaussian noise.
 
+With --stiffening E_S each rope's law is T = k1 e (1 + e / E_S) (tangent stiffness
+k1 (1 + 2 e / E_S), which grows as the square root of the tension: not the catalog's
+stiffening, linear in the tension); the carriage's take-up c is then solved at every
+step from T(c + d) + T(c - d) = 2 T0 (Newton from the last step's c).
+
+With --encoder-delay TAU the output encoder reports the pulley's angle TAU late
+(linear interpolation between MuJoCo's steps; before t = 0, the rest angle 0).
+
 With --load-inertia J the output is two inertias, the pulley (I - J) and a load J
 behind a torsional shaft (--shaft-stiffness, --shaft-damping): a second mode that no
 effect of the catalog holds; the encoder reads the pulley.
@@ -23,7 +31,8 @@ Usage (needs `pip install mujoco==4.0.0 numpy`):
     mujoco_rig_sweep.py --out DIR [--frictionloss N_M] [--tensions 49,98,196,294,392]
                         [--seed S] [--dt 2e-4] [--tension-noise 0.5]
                         [--load-inertia J --shaft-stiffness K --shaft-damping C]
-                        [--true-damping C_TRUE]
+                        [--true-damping C_TRUE] [--stiffening E_S]
+                        [--encoder-delay TAU]
 """
 
 import argparse
@@ -109,7 +118,44 @@ def rope_torque(theta, phi, t0):
     return R2 * pull, t0 + 0.5 * pull
 
 
-def run(t0, dt, friction, rng, tension_noise, load_inertia, shaft_k, shaft_c, damping):
+class StiffeningRopes:
+    """Two ropes of law T = k1 e (1 + e / e_s) (e > 0; slack below) on the constant-force
+    carriage: rope 1 stretched by c + d, rope 2 by c - d, with c such that
+    T(c + d) + T(c - d) = 2 T0 (one rope carries 2 T0 alone when the other is slack)."""
+
+    def __init__(self, t0, e_s):
+        self.t0, self.e_s = t0, e_s
+        # the rest take-up: both ropes at T0, T(c) = T0 solved in closed form
+        e = 0.5 * e_s * (math.sqrt(1.0 + 4.0 * t0 / (K1 * e_s)) - 1.0)
+        self.c = e * LENGTH
+
+    def law(self, stretch):
+        """Tension and its derivative with respect to the stretch."""
+        if stretch <= 0.0:
+            return 0.0, 0.0
+        e = stretch / LENGTH
+        return K1 * e * (1.0 + e / self.e_s), K1 * (1.0 + 2.0 * e / self.e_s) / LENGTH
+
+    def torque(self, theta, phi):
+        """(torque on the output pulley, T1, T2); moves the take-up c."""
+        d = R1 * theta - R2 * phi
+        c = self.c
+        for _ in range(50):
+            (f1, g1), (f2, g2) = self.law(c + d), self.law(c - d)
+            r = f1 + f2 - 2.0 * self.t0
+            if abs(r) <= 1e-10 * self.t0:
+                break
+            g = g1 + g2
+            # (both slack: a step of the rest take-up's order)
+            c = c - r / g if g > 0.0 else c + abs(d) + self.c
+        else:
+            sys.exit(f"the carriage's take-up did not converge at d = {d} m")
+        self.c = c
+        t1, t2 = self.law(c + d)[0], self.law(c - d)[0]
+        return R2 * (t1 - t2), t1, t2
+
+
+def run(t0, dt, friction, rng, tension_noise, load_inertia, shaft_k, shaft_c, damping, e_s, delay):
     load = LOAD.format(i=load_inertia) if load_inertia > 0.0 else ""
     shaft = SHAFT.format(k=shaft_k, c=shaft_c) if load_inertia > 0.0 else ""
     model = mujoco.MjModel.from_xml_string(
@@ -126,24 +172,45 @@ def run(t0, dt, friction, rng, tension_noise, load_inertia, shaft_k, shaft_c, da
     steps, total = schedule()
     n = int(round(total / SAMPLE))
     per = int(round(SAMPLE / dt))  # (main checked that dt divides the sample period)
+    ropes = StiffeningRopes(t0, e_s) if e_s is not None else None
+    # the pulley's angle at every MuJoCo step so far (for the encoder's delay)
+    history = [0.0]
+
+    def tensions(theta, phi):
+        if ropes is None:
+            tau, t1 = rope_torque(theta, phi, t0)
+            return tau, t1, 2.0 * t0 - t1
+        return ropes.torque(theta, phi)
+
+    def encoder(t):
+        """The pulley's angle the encoder reports at t (history up to t)."""
+        back = (t - delay) / dt
+        if back <= 0.0:
+            return 0.0
+        j = int(math.floor(back))
+        a = back - j
+        return history[j] if a == 0.0 else (1.0 - a) * history[j] + a * history[j + 1]
+
     rows = []
     for i in range(n):
         t = i * SAMPLE
         theta, f = command(t, steps)
-        _, t1 = rope_torque(theta, data.qpos[0], t0)
-        t2 = 2.0 * t0 - t1
+        _, t1, t2 = tensions(theta, data.qpos[0])
         noise = rng.normal(0.0, tension_noise, 4)
+        phi = data.qpos[0] if delay == 0.0 else encoder(t)
         rows.append(
-            (t, f, theta, quantise(theta), quantise(data.qpos[0]), t1 + noise[0], t2 + noise[1], t1 + noise[2], t2 + noise[3])
+            (t, f, theta, quantise(theta), quantise(phi), t1 + noise[0], t2 + noise[1], t1 + noise[2], t2 + noise[3])
         )
         for k in range(per):
             # the rope torque at the step's midpoint input and its start angle
             th, _ = command(t + (k + 0.5) * dt, steps)
-            tau, _ = rope_torque(th, data.qpos[0], t0)
+            tau, _, _ = tensions(th, data.qpos[0])
             data.qfrc_applied[0] = tau
             mujoco.mj_step(model, data)
             if not math.isfinite(data.qpos[0]):
                 sys.exit(f"MuJoCo blew up at t = {t} s")
+            if delay > 0.0:
+                history.append(data.qpos[0])
     return rows
 
 
@@ -164,6 +231,13 @@ def main():
         default=None,
         help="the output shaft's viscous damping MuJoCo simulates [N*m*s]; the dataset states C = 0.05",
     )
+    ap.add_argument(
+        "--stiffening",
+        type=float,
+        default=None,
+        help="E_S: each rope's law is T = k1 e (1 + e / E_S) instead of k1 e [-]",
+    )
+    ap.add_argument("--encoder-delay", type=float, default=0.0, help="the output encoder reports the angle this late [s]")
     a = ap.parse_args()
     # (every argument checked before anything is written)
     if not 0.0 <= a.load_inertia < INERTIA:
@@ -182,6 +256,10 @@ def main():
             sys.exit(f"--{name.replace('_', '-')} must be >= 0, got {v}")
     if a.true_damping is not None and not (a.true_damping >= 0.0 and math.isfinite(a.true_damping)):
         sys.exit(f"--true-damping must be >= 0, got {a.true_damping}")
+    if a.stiffening is not None and not (a.stiffening > 0.0 and math.isfinite(a.stiffening)):
+        sys.exit(f"--stiffening must be > 0 (a strain), got {a.stiffening}")
+    if not (0.0 <= a.encoder_delay <= 0.2):
+        sys.exit(f"--encoder-delay must lie in [0, 0.2] s, got {a.encoder_delay}")
     rng = np.random.default_rng(a.seed)
     os.makedirs(a.out, exist_ok=True)
     load = (
@@ -189,6 +267,10 @@ def main():
         if a.load_inertia > 0.0
         else ""
     )
+    if a.stiffening is not None:
+        load += f"ropes T = k1 e (1 + e / {a.stiffening}), "
+    if a.encoder_delay > 0.0:
+        load += f"encoder {a.encoder_delay} s late, "
     toml = [
         'format = "longreach-measurement/1"',
         'kind = "sine_sweep"',
@@ -217,6 +299,8 @@ def main():
             a.shaft_stiffness,
             a.shaft_damping,
             DAMPING if a.true_damping is None else a.true_damping,
+            a.stiffening,
+            a.encoder_delay,
         )
         with open(os.path.join(a.out, name), "w") as fh:
             fh.write(
