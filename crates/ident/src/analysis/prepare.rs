@@ -291,7 +291,8 @@ impl<'a> Prepared<'a> {
         })
     }
 
-    /// The same data prepared again (the same plant, step and refinement), for work
+    /// The same data prepared again (the same plant, step, refinement and runs, as
+    /// this instance holds them: a caller may have left a run's channels out), for work
     /// made ahead of a decision: once `abandon` is set, every simulation asked of it
     /// fails with [`IdentError::Abandoned`], so what runs there stops within one
     /// simulation of a run.
@@ -301,6 +302,7 @@ impl<'a> Prepared<'a> {
     ) -> Result<Prepared<'a>, IdentError> {
         let mut p =
             Self::with_substeps(self.ds, self.substeps)?.with_arm_refinement(self.arm_refinement);
+        p.runs = self.runs.clone();
         p.abandon = Some(abandon);
         Ok(p)
     }
@@ -328,7 +330,9 @@ impl<'a> Prepared<'a> {
         if self.kind != DataKind::ArmMoves || self.arm_refinement <= 1 {
             return Ok(None);
         }
-        Ok(Some(Self::with_substeps(self.ds, self.substeps)?))
+        let mut p = Self::with_substeps(self.ds, self.substeps)?;
+        p.runs = self.runs.clone();
+        Ok(Some(p))
     }
 
     /// Simulates `model` on every run (in parallel, results in run order); returns, for
