@@ -353,6 +353,9 @@ fn clip_segment(
     Some((at(t0), at(t1), t0 > 0.0, t1 < 1.0))
 }
 
+/// Smallest font a long title is shrunk to [px] (below it, it is cut at the edges).
+const MIN_TITLE_FONT: f64 = 11.0;
+
 /// Pixel sizes derived from the image size.
 #[derive(Debug, Clone, Copy)]
 struct Metrics {
@@ -423,7 +426,19 @@ fn draw(fig: &Figure, prep: &Prepared, root: &Area) -> Result<(), String> {
 
     let mut top = m.margin / 2;
     if !fig.title.trim().is_empty() {
-        let style = font(m.title_font).pos(Pos::new(HPos::Center, VPos::Top));
+        // A title wider than the picture less its margins is drawn smaller, to fit
+        // (a dataset's long title and a run's name over a report's Bode plot ran off
+        // both sides).
+        let room = f64::from((w - 2 * m.margin).max(1));
+        let (wide, _) = root
+            .estimate_text_size(&fig.title, &font(m.title_font))
+            .map_err(msg)?;
+        let size = if f64::from(wide) > room {
+            (m.title_font * room / f64::from(wide)).max(MIN_TITLE_FONT)
+        } else {
+            m.title_font
+        };
+        let style = font(size).pos(Pos::new(HPos::Center, VPos::Top));
         root.draw(&Text::new(fig.title.clone(), (w / 2, top), style))
             .map_err(msg)?;
         top += (m.title_font * 1.5) as i32;

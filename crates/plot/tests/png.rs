@@ -455,3 +455,29 @@ fn non_png_extension_is_an_error() {
     assert!(matches!(err, PlotError::NotPng { .. }), "{err:?}");
     assert!(!path.exists());
 }
+
+/// A title longer than the picture is wide (a dataset's title and a run's name, as
+/// `diagnose --report` writes over a Bode plot) is drawn smaller to fit: the columns at
+/// the picture's edges stay white in the title's rows.
+#[test]
+fn a_long_title_fits_inside_the_picture() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bode_long.png");
+    let curves: Vec<BodeCurve> = common::rope_curves(49.0, 0).into();
+    let title = "MuJoCo 4.0.0 rig, stainless1, frictionloss 0.0 N*m, ropes T = k1 e (1 + e / 0.005), seed 21 run_02: measured vs model";
+    write_png(&bode_figure(title, &curves), &path).unwrap();
+    let img = decode(&path);
+    let title_rows = 0..40;
+    let ink_at = |x: u32| {
+        title_rows
+            .clone()
+            .filter(|&y| img.get_pixel(x, y).0 != [255, 255, 255])
+            .count()
+    };
+    for x in (0..8).chain(BODE_WIDTH_PX - 8..BODE_WIDTH_PX) {
+        assert_eq!(ink_at(x), 0, "the title reaches column {x}");
+    }
+    // and it is drawn: ink in the title's rows
+    let ink: usize = (0..BODE_WIDTH_PX).map(ink_at).sum();
+    assert!(ink > 500, "{ink} title pixels");
+}
