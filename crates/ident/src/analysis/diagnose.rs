@@ -357,9 +357,20 @@ fn staged_fits(
         .filter_map(|r| r.as_ref().ok())
         .map(|f| f.ssr)
         .fold(f64::INFINITY, f64::min);
+    fitted_within(stages, screens, best)
+}
+
+/// The second stage of [`Staged`] fits against `reference`, a squared error: each stage
+/// fitted on where its screen is not above [`SCREEN_RATIO`] times it, else its screen
+/// kept; the results in order, and whether each was stopped.
+fn fitted_within(
+    stages: Vec<Staged<'_, '_>>,
+    screens: Vec<Result<Fitted, IdentError>>,
+    reference: f64,
+) -> (Vec<Result<Fitted, IdentError>>, Vec<bool>) {
     let stop: Vec<bool> = screens
         .iter()
-        .map(|r| r.as_ref().is_ok_and(|f| f.ssr > SCREEN_RATIO * best))
+        .map(|r| r.as_ref().is_ok_and(|f| f.ssr > SCREEN_RATIO * reference))
         .collect();
     let fits = fitted_on(stages.into_iter().map(Some).collect(), screens, &stop);
     (fits, stop)
@@ -701,11 +712,7 @@ fn rescreen_stopped(
         .filter(|f| f.fit.is_some())
         .map(|f| f.ssr)
         .fold(f64::INFINITY, f64::min);
-    let stop: Vec<bool> = screens
-        .iter()
-        .map(|r| r.as_ref().is_ok_and(|f| f.ssr > SCREEN_RATIO * reference))
-        .collect();
-    let again = fitted_on(stages.into_iter().map(Some).collect(), screens, &stop);
+    let (again, stop) = fitted_within(stages, screens, reference);
     for ((&i, r), stop) in idx.iter().zip(again).zip(stop) {
         let closer = match (&r, &fits[i].1) {
             (Ok(new), Ok(old)) => new.ssr < old.ssr,

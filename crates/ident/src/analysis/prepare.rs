@@ -300,10 +300,21 @@ impl<'a> Prepared<'a> {
         &self,
         abandon: std::sync::Arc<std::sync::atomic::AtomicBool>,
     ) -> Result<Prepared<'a>, IdentError> {
-        let mut p =
-            Self::with_substeps(self.ds, self.substeps)?.with_arm_refinement(self.arm_refinement);
-        p.runs = self.runs.clone();
+        let mut p = self.reprepared(self.arm_refinement)?;
         p.abandon = Some(abandon);
+        Ok(p)
+    }
+
+    /// This data prepared again at the arm refinement `arm_refinement`, with the runs as
+    /// this instance holds them (a caller may have left a run's channels out: prepared
+    /// from the dataset again, they came back, and simulations cached in one instance
+    /// did not match the other's runs).
+    fn reprepared(&self, arm_refinement: usize) -> Result<Prepared<'a>, IdentError> {
+        let mut p = Self::with_substeps(self.ds, self.substeps)?;
+        if arm_refinement != p.arm_refinement {
+            p = p.with_arm_refinement(arm_refinement);
+        }
+        p.runs = self.runs.clone();
         Ok(p)
     }
 
@@ -330,9 +341,7 @@ impl<'a> Prepared<'a> {
         if self.kind != DataKind::ArmMoves || self.arm_refinement <= 1 {
             return Ok(None);
         }
-        let mut p = Self::with_substeps(self.ds, self.substeps)?;
-        p.runs = self.runs.clone();
-        Ok(Some(p))
+        Ok(Some(self.reprepared(1)?))
     }
 
     /// Simulates `model` on every run (in parallel, results in run order); returns, for
