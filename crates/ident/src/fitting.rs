@@ -1368,16 +1368,64 @@ fn uncertainties(
 }
 
 /// The unclipped interval of a parameter fitted at `x`, centred at `x + shift`, of
-/// half-width `half` (in the parameter; for a log-scale one in `ln x`, as `half / x`).
-/// NaN half-widths give infinite ends.
+/// half-width `half` (in the parameter; for a log-scale one in `ln x`, as `half / x`,
+/// and centred at `ln x + shift / x`: the shift, like the standard error, is computed
+/// for a relative change of `x` (module docs), which is a change of `ln x`). NaN
+/// half-widths give infinite ends.
+///
+/// (Until 2026-12-07 a log-scale interval was centred at `ln(x + shift)`: where the
+/// step-error shift exceeded the value, the centre was `ln 0`, and the interval ran from
+/// the bound to the fitted value. On MuJoCo's 2-run friction sweep every knot of
+/// `joint_friction`'s 7-knot table but the first had `[0, value]`, "clipped at the
+/// lower bound", none holding the 0.02 N*m the data were made with.)
 fn interval(x: f64, shift: f64, half: f64, spec: &ParamSpec) -> (f64, f64) {
     let half = if half.is_nan() { f64::INFINITY } else { half };
-    let c = x + shift;
     if spec.log_scale && x > 0.0 {
         let h = half / x;
-        let lc = if c > 0.0 { c.ln() } else { f64::NEG_INFINITY };
+        let lc = x.ln() + shift / x;
         ((lc - h).exp(), (lc + h).exp())
     } else {
+        let c = x + shift;
         (c - half, c + half)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn log_spec() -> ParamSpec {
+        ParamSpec {
+            lower: 1e-9,
+            upper: 1e3,
+            log_scale: true,
+            ..ParamSpec::new("coulomb_n_m", "N*m", 0.02)
+        }
+    }
+
+    /// A log-scale interval is centred at `ln x + shift / x` (the shift is for a
+    /// relative change of `x`): a shift beyond the value keeps a positive centre, where
+    /// `ln(x + shift)` had none; a small shift gives `ln(x + shift)` to second order.
+    #[test]
+    fn a_log_scale_interval_takes_its_shift_in_the_logarithm() {
+        let s = log_spec();
+        let (x, se) = (0.02, 0.001);
+        let (lo, hi) = interval(x, -0.03, 1.96 * se, &s);
+        let c = (x.ln() - 1.5).exp();
+        assert!((lo - c * (-1.96 * se / x).exp()).abs() < 1e-15, "{lo}");
+        assert!((hi - c * (1.96 * se / x).exp()).abs() < 1e-15, "{hi}");
+        assert!(lo > 0.0 && hi < x, "[{lo}, {hi}]");
+        let small = 1e-5;
+        let (lo, hi) = interval(x, small, 0.0, &s);
+        assert_eq!(lo, hi);
+        let r = small / x;
+        assert!(
+            (lo - (x + small)).abs() < 0.6 * x * r * r,
+            "{lo} against {}",
+            x + small
+        );
+        // A linear parameter: centred at x + shift.
+        let lin = ParamSpec::new("k1_scale", "1", 1.0);
+        assert_eq!(interval(1.0, -0.5, 0.25, &lin), (0.25, 0.75));
     }
 }

@@ -323,7 +323,8 @@ fn mujoco_names(name: &str, effect: &str) -> (Candidate, f64) {
 /// shaft (`frictionloss` 0.02 N*m, a soft constraint, not longreach's tanh law) the
 /// effect named is `joint_friction`, the model with it within 1.5x the floor, and the
 /// 95% interval of its Coulomb torque holds MuJoCo's 0.02 N*m (or, its law refined into
-/// a table over the sliding rate, the table's median knot lies within 20% of it).
+/// a table over the sliding rate, the table's median knot lies within 20% of it, and
+/// the intervals of all its knots but one above rate 0 hold it).
 #[test]
 fn a_mujoco_sweep_names_its_dry_friction_and_its_control_nothing() {
     let ds = Dataset::load(example("example_mujoco_control")).unwrap();
@@ -362,6 +363,31 @@ fn a_mujoco_sweep_names_its_dry_friction_and_its_control_nothing() {
             assert!(
                 (0.016..=0.024).contains(&median),
                 "the table's median knot {median} N*m against MuJoCo's 0.02: {knots:?}"
+            );
+            // Every knot after rate 0 is determined by the data (its 95% interval
+            // within a decade), and all but one hold MuJoCo's 0.02 N*m. (With the
+            // viscous coefficient fitted beside the table, one direction of the data
+            // with it, every interval ran from 0 to the value or to the bounds.)
+            let moving: Vec<(&String, &[f64; 2])> = named
+                .interval_95
+                .iter()
+                .filter(|(k, _)| k.starts_with("coulomb_n_m@") && !k.ends_with("=0"))
+                .collect();
+            assert_eq!(moving.len(), knots.len() - 1, "{:?}", named.interval_95);
+            for (k, &[lo, hi]) in &moving {
+                assert!(
+                    lo > 0.0 && hi < 10.0 * lo,
+                    "{k}: [{lo}, {hi}] N*m is not determined"
+                );
+            }
+            let holding = moving
+                .iter()
+                .filter(|(_, &[lo, hi])| lo <= 0.02 && 0.02 <= hi)
+                .count();
+            assert!(
+                holding + 1 >= moving.len(),
+                "{holding} of {} knots' intervals hold 0.02 N*m: {moving:?}",
+                moving.len()
             );
         }
     }
