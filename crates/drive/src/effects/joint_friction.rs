@@ -81,12 +81,7 @@ impl Effect for JointFriction {
             non_decreasing: false,
             max_value: 1e3,
             log_knots: true,
-            // The viscous torque v w is itself such a table (values v w_k, linear
-            // between knots): fitted beside the table it is one direction of the data
-            // with it, and the intervals of the knots and of v ran to their bounds (on
-            // MuJoCo's friction sweep every knot's standard error was 8.4 times its
-            // rate, v's own). The table holds the catalog law's v and carries the rest.
-            replaces: &["coulomb_n_m", "viscous_n_m_s"],
+            replaces: &["coulomb_n_m"],
         })
     }
     fn curve(&self, values: &[f64], _rate_rad_s: f64) -> f64 {
