@@ -85,7 +85,8 @@
 //! often than 95% on one side.
 //!
 //! A log-scale parameter's interval is symmetric in `ln x` (standard error of `ln x`:
-//! `se / x`). An interval that reaches past a bound is clipped there, flagged
+//! `se / x`) and centred at `ln x + shift / x` (the shift, like the standard error, is
+//! for a relative change of `x`). An interval that reaches past a bound is clipped there, flagged
 //! ([`Clipped`]) and made to reach the fitted value (a parameter held at its bound whose
 //! optimum lies beyond it gets the interval from the bound to the fitted value at
 //! least). A parameter the data do not determine (its column of `J` zero, or explained
@@ -1377,7 +1378,9 @@ fn uncertainties(
 /// step-error shift exceeded the value, the centre was `ln 0`, and the interval ran from
 /// the bound to the fitted value. On MuJoCo's 2-run friction sweep every knot of
 /// `joint_friction`'s 7-knot table but the first had `[0, value]`, "clipped at the
-/// lower bound", none holding the 0.02 N*m the data were made with.)
+/// lower bound", none holding the 0.02 N*m the data were made with; centred in the
+/// logarithm they reach both bounds, "not determined", which they are: the viscous
+/// coefficient fitted beside the table is one direction of the data with them.)
 fn interval(x: f64, shift: f64, half: f64, spec: &ParamSpec) -> (f64, f64) {
     let half = if half.is_nan() { f64::INFINITY } else { half };
     if spec.log_scale && x > 0.0 {
@@ -1417,7 +1420,7 @@ mod tests {
         assert!(lo > 0.0 && hi < x, "[{lo}, {hi}]");
         let small = 1e-5;
         let (lo, hi) = interval(x, small, 0.0, &s);
-        assert_eq!(lo, hi);
+        assert_eq!(lo.to_bits(), hi.to_bits());
         let r = small / x;
         assert!(
             (lo - (x + small)).abs() < 0.6 * x * r * r,
