@@ -980,34 +980,39 @@ fn refine_contenders(
     // neighbourhood at 0.02, and the refinement of the screen's law had named a table
     // whose every knot's interval spanned the range); refined when it still leaves the
     // data above the floor margin.
-    #[allow(clippy::type_complexity)]
-    let refined: Vec<(
-        usize,
-        Option<Fitted>,
-        Option<(ShapeRefinement, Fitted)>,
-        Vec<String>,
-    )> = picked
+    let work: Vec<ContenderWork> = picked
         .par_iter()
         .map(|&i| {
-            let mut own = Vec::new();
-            let fitted = cands[i]
-                .1
+            let mut notes = Vec::new();
+            let screen = cands[i].1.as_ref();
+            let fitted = screen.filter(|f| f.fit.is_none()).and_then(|f| {
+                fit_model_from(prep, &f.model, Start::Own)
+                    .ok()
+                    .filter(|g| g.ssr <= f.ssr)
+            });
+            let refined = fitted
                 .as_ref()
-                .filter(|f| f.fit.is_none())
-                .and_then(|f| fit_model_from(prep, &f.model, Start::Own).ok())
-                .filter(|g| cands[i].1.as_ref().is_some_and(|f| g.ssr <= f.ssr));
-            let r = fitted
-                .as_ref()
-                .or(cands[i].1.as_ref())
+                .or(screen)
                 .filter(|f| f.nrmse > FLOOR_MARGIN * f.noise_floor)
                 .and_then(|f| {
                     let e = f.model.effects.len().saturating_sub(1);
-                    refine_or_note(prep, f, e, &mut own)
+                    refine_or_note(prep, f, e, &mut notes)
                 });
-            (i, fitted, r, own)
+            ContenderWork {
+                i,
+                fitted,
+                refined,
+                notes,
+            }
         })
         .collect();
-    for (i, fitted, r, own) in refined {
+    for ContenderWork {
+        i,
+        fitted,
+        refined: r,
+        notes: own,
+    } in work
+    {
         notes.extend(own);
         if let Some(f) = fitted {
             let name = cands[i].0.effect.clone();
@@ -1027,6 +1032,15 @@ fn refine_contenders(
         }
     }
     rank(cands);
+}
+
+/// What [`refine_contenders`] did for the candidate at `i`: its catalog law fitted on
+/// when it was only screened (and came closer), its law's refinement, and the notes.
+struct ContenderWork {
+    i: usize,
+    fitted: Option<Fitted>,
+    refined: Option<(ShapeRefinement, Fitted)>,
+    notes: Vec<String>,
 }
 
 /// A candidate whose fit failed: ranked last, its error kept.
@@ -1839,7 +1853,7 @@ pub fn diagnose_with(
     };
     let models: Vec<Model> = effects.iter().map(|e| searched.with_effect(*e)).collect();
     let mut led = None;
-    let (fits, stopped) = if at_floor {
+    let (fits, mut stopped) = if at_floor {
         let fits = models.par_iter().map(|m| screen_model(search, m)).collect();
         (fits, vec![false; models.len()])
     } else if prep.kind == DataKind::ArmMoves {
@@ -1859,7 +1873,6 @@ pub fn diagnose_with(
         .map(|e| e.name().to_string())
         .zip(fits)
         .collect();
-    let mut stopped = stopped;
     let mut fits = finish(
         prep,
         coarse.as_ref(),
