@@ -48,8 +48,9 @@ pub use compare::{
 };
 pub use diagnose::{
     check_registered, diagnose, diagnose_with, diagnose_without, excess_by_channel,
-    BaselineSummary, Candidate, DiagnoseOptions, Diagnosis, Lead, FLOOR_MARGIN, MIN_EXPLAINED,
-    MIN_SCORE, MIN_SCORE_GAP, NAME_MARGIN, PAIR_CANDIDATES, REFINE_MARGIN, SCREEN_RATIO,
+    BaselineSummary, Candidate, DiagnoseOptions, Diagnosis, Lead, FLOOR_MARGIN, IDLE_SHARE,
+    MIN_EXPLAINED, MIN_SCORE, MIN_SCORE_GAP, NAME_MARGIN, PAIR_CANDIDATES, REFINE_MARGIN,
+    SCREEN_RATIO,
 };
 pub use fit::{
     fit_model, fit_model_deferred, fit_model_from, fit_model_from_starts, scan_coordinates,

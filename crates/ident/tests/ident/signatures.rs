@@ -7,7 +7,7 @@
 use longreach_drive::effects;
 use longreach_ident::analysis::{
     compare, describe, diagnose, excess_by_channel, fit_model, signatures, Prepared, Signature,
-    SignatureKind,
+    SignatureKind, IDLE_SHARE,
 };
 use longreach_ident::dataset::DatasetKind;
 use longreach_ident::model::Model;
@@ -207,6 +207,39 @@ fn a_miscalibrated_load_cell_is_quantified_as_a_gain() {
     assert_eq!(eq.unit, "N");
     // (the sensor's zero is right: its offset is within the tension noise)
     assert!(eq.value.abs() < 0.8, "{s:?}");
+}
+
+#[test]
+fn a_miscalibration_no_candidate_explains_stops_their_fits_and_names_nothing() {
+    // The same load cells reading 5% high, diagnosed: no candidate's search moves the
+    // error (every screen at or above the baseline's), so none is fitted on beyond the
+    // best-screened one ([`IDLE_SHARE`]); `relay_friction`'s whole fit was three
+    // quarters of the diagnosis and ended above the baseline. The verdict and the
+    // signature that says what is missing stay.
+    let ds = miscalibrated_sweep(1.0, 1.05, 21);
+    let prep = Prepared::new(&ds).unwrap();
+    let (d, base_fit, _) = diagnose(&prep, &base()).unwrap();
+    eprintln!("{}", d.explanation);
+    assert_eq!(d.missing_effect, None);
+    assert!(d.lead.is_none(), "{:?}", d.lead);
+    let relay = d
+        .candidates
+        .iter()
+        .find(|c| c.effect == "relay_friction")
+        .unwrap();
+    assert!(relay.screened, "{relay:?}");
+    // what each candidate explains is what it was judged on: nothing of the excess
+    let floor_ssr = prep.floor_ssr();
+    for c in &d.candidates {
+        assert!(c.explained < IDLE_SHARE, "{c:?}");
+    }
+    assert!(base_fit.ssr > floor_ssr);
+    assert!(d
+        .explanation
+        .contains("no closer to the data than the baseline"));
+    let s = find(&d.signatures, SignatureKind::Calibration);
+    assert!((s.size - 0.05).abs() < 1e-3, "{s:?}");
+    assert!(s.share_removed > 0.95, "{s:?}");
 }
 
 #[test]
