@@ -213,9 +213,10 @@ fn a_miscalibrated_load_cell_is_quantified_as_a_gain() {
 fn a_miscalibration_no_candidate_explains_stops_their_fits_and_names_nothing() {
     // The same load cells reading 5% high, diagnosed: no candidate's search moves the
     // error (every screen at or above the baseline's), so none is fitted on beyond the
-    // best-screened one ([`IDLE_SHARE`]); `relay_friction`'s whole fit was three
-    // quarters of the diagnosis and ended above the baseline. The verdict and the
-    // signature that says what is missing stay.
+    // best-screened one ([`IDLE_SHARE`]; on a 5-run sweep with rope 1's two cells 5%
+    // high, `relay_friction`'s whole fit had been three quarters of the diagnosis, and
+    // ended above the baseline). The verdict and the signature that says what is
+    // missing stay.
     let ds = miscalibrated_sweep(1.0, 1.05, 21);
     let prep = Prepared::new(&ds).unwrap();
     let (d, base_fit, _) = diagnose(&prep, &base()).unwrap();
