@@ -2473,6 +2473,10 @@ fn explain(
             }
             if arm_dataset(prep.ds).is_some() {
                 s.push_str(&arm.after_words());
+                // (an arm's signatures, when it has any: the calibration of its sensors)
+                if !sigs.is_empty() {
+                    s.push_str(&describe(sigs));
+                }
             } else {
                 s.push_str(&describe(sigs));
             }

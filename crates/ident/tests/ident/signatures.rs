@@ -244,6 +244,48 @@ fn a_miscalibration_no_candidate_explains_stops_their_fits_and_names_nothing() {
 }
 
 #[test]
+fn an_arms_miscalibrated_load_cells_are_quantified_as_gains() {
+    // The arm's control with j2's two load cells reading 5% high: the arm's sensors
+    // reach the fits as one stacked channel, and the calibration is per sensor of the
+    // stack, in the sensor's unit (a gain shows on the tension's level as well as on
+    // its motion). Before, the arm had no calibration signature: the one stacked gain
+    // removed 7% of the excess.
+    let mut ds = example("example_arm_control");
+    let DatasetKind::ArmMoves(am) = &mut ds.kind else {
+        unreachable!()
+    };
+    for run in &mut am.runs {
+        for c in &mut run.channels {
+            if c.name.starts_with("tension_j2_") {
+                c.values.iter_mut().for_each(|v| *v *= 1.05);
+            }
+        }
+    }
+    let model = Model::baseline(&ds).unwrap();
+    let sigs = baseline_signatures(&ds, &model);
+    let s = find(&sigs, SignatureKind::Calibration);
+    assert!(
+        s.term.ends_with("the gain error of tension_j2_2_n, g - 1")
+            || s.term.ends_with("the gain error of tension_j2_1_n, g - 1"),
+        "{s:?}"
+    );
+    assert!((s.size - 0.05).abs() < 2e-3, "{s:?}");
+    assert!(s.share_removed > 0.95, "{s:?}");
+    // both cells listed with their gain, no other sensor
+    for ch in ["tension_j2_1_n", "tension_j2_2_n"] {
+        let g: f64 = s
+            .note
+            .split(&format!("{ch}: g "))
+            .nth(1)
+            .and_then(|rest| rest.split(',').next())
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("{ch} not listed: {s:?}"));
+        assert!((g - 1.05).abs() < 2e-3, "{ch}: {g} in {s:?}");
+    }
+    assert_eq!(s.note.matches(": g ").count(), 2, "{s:?}");
+}
+
+#[test]
 fn a_miscalibrated_encoder_is_quantified_as_a_gain() {
     // The output encoder reading 3% high (or the output radius 3% off): the
     // quasi-static ratio of output to input, which no stiffness changes, is off by 3%.
