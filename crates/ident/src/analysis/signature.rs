@@ -969,7 +969,7 @@ fn drift(b: &Base<'_, '_>) -> Term {
 const CALIBRATION_MIN_SHARE: f64 = 0.2;
 
 /// [`CALIBRATION_MIN_SHARE`] on an arm, whose calibration has a gain and an offset for
-/// each of its sensors (56 on `example_arm_joint_friction`'s 28): there they absorb a
+/// each of its sensors (46 on `example_arm_joint_friction`'s 23): there they absorb a
 /// share of any failure. With `joint_friction` hidden (`diagnose --without
 /// joint_friction`) they removed 21%, a 4.7% gain on `joint_j5_rad` reading as the
 /// missing friction; j2's two load cells 5% high, 100%.
