@@ -165,6 +165,16 @@ fn miscalibrated_sweep(angle_gain: f64, tension_gain: f64, seed: u64) -> Dataset
     ds
 }
 
+/// The gain a calibration signature's note lists for channel `ch`.
+fn listed_gain(s: &Signature, ch: &str) -> f64 {
+    s.note
+        .split(&format!("{ch}: g "))
+        .nth(1)
+        .and_then(|rest| rest.split(',').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("{ch} not listed: {s:?}"))
+}
+
 #[test]
 fn a_miscalibrated_load_cell_is_quantified_as_a_gain() {
     // Load cells reading 5% high: the angle is the model's, every tension 1.05 times
@@ -194,13 +204,7 @@ fn a_miscalibrated_load_cell_is_quantified_as_a_gain() {
         "tension_out_1_n",
         "tension_out_2_n",
     ] {
-        let g: f64 = s
-            .note
-            .split(&format!("{ch}: g "))
-            .nth(1)
-            .and_then(|rest| rest.split(',').next())
-            .and_then(|v| v.parse().ok())
-            .unwrap_or_else(|| panic!("{ch} not listed: {s:?}"));
+        let g = listed_gain(s, ch);
         assert!((g - 1.05).abs() < 1e-3, "{ch}: {g} in {s:?}");
     }
     let eq = s.equivalent.as_ref().unwrap();
@@ -273,13 +277,7 @@ fn an_arms_miscalibrated_load_cells_are_quantified_as_gains() {
     assert!(s.share_removed > 0.95, "{s:?}");
     // both cells listed with their gain, no other sensor
     for ch in ["tension_j2_1_n", "tension_j2_2_n"] {
-        let g: f64 = s
-            .note
-            .split(&format!("{ch}: g "))
-            .nth(1)
-            .and_then(|rest| rest.split(',').next())
-            .and_then(|v| v.parse().ok())
-            .unwrap_or_else(|| panic!("{ch} not listed: {s:?}"));
+        let g = listed_gain(s, ch);
         assert!((g - 1.05).abs() < 2e-3, "{ch}: {g} in {s:?}");
     }
     assert_eq!(s.note.matches(": g ").count(), 2, "{s:?}");
