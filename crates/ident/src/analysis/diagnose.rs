@@ -1974,7 +1974,7 @@ pub fn diagnose_with(
                 }
             )
         };
-        let idle = if idle {
+        let idle_reason = if idle {
             format!(
                 ", or, where that candidate removes less than {:.0}% of the baseline's excess over the floor, no closer to the data than the baseline",
                 100.0 * IDLE_SHARE
@@ -1983,7 +1983,7 @@ pub fn diagnose_with(
             String::new()
         };
         notes.push(format!(
-            "Only screened, not fitted on (their starting grid and {SCREEN_JACOBIANS} steps of their first start's least squares left them above {SCREEN_RATIO}x {against}{idle}): {}. ",
+            "Only screened, not fitted on (their starting grid and {SCREEN_JACOBIANS} steps of their first start's least squares left them above {SCREEN_RATIO}x {against}{idle_reason}): {}. ",
             stopped_names.join(", ")
         ));
     }

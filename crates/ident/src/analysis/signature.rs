@@ -1131,9 +1131,9 @@ where
 
 /// [`calibration`]'s channels on an arm: every sensor of the stacked channel
 /// ([`crate::plant::stack`]: each sensor's values minus their mean over their noise,
-/// one slice per sensor), by its name over the runs, back in the sensor's unit (each
-/// run's slice times its noise plus its mean, weighted by the noise's inverse square:
-/// the stacked SSR). In the sensor's unit a gain reads on the level as well as on the
+/// one slice per sensor), by its name over the runs, in the sensor's unit (the model's
+/// slice times its noise plus its mean, against the sensor's own values, weighted by
+/// the noise's inverse square: the stacked SSR). In the sensor's unit a gain reads on the level as well as on the
 /// motion; in the stacked units each run's own mean would leave it to the motion
 /// alone (j2's load cells 5% high on `example_arm_control`: g 1.003 and c 42 N there).
 fn arm_sensors(b: &Base<'_, '_>, am: &crate::dataset::ArmMovesDataset) -> Vec<Calibrated> {
@@ -1148,7 +1148,7 @@ fn arm_sensors(b: &Base<'_, '_>, am: &crate::dataset::ArmMovesDataset) -> Vec<Ca
     }
     // each run's sensors: (name, model, measured, analysed indices, weight^2), in the
     // sensor's unit
-    type Slice<'n> = (&'n str, Vec<f64>, Vec<f64>, Vec<usize>, f64);
+    type Slice<'n> = (&'n str, Vec<f64>, &'n [f64], Vec<usize>, f64);
     let slices: Vec<Slice<'_>> = am
         .runs
         .iter()
@@ -1161,15 +1161,17 @@ fn arm_sensors(b: &Base<'_, '_>, am: &crate::dataset::ArmMovesDataset) -> Vec<Ca
             ar.channels
                 .iter()
                 .enumerate()
-                .filter(move |(k, _)| y.len() >= (k + 1) * n && run.measured.len() >= (k + 1) * n)
+                .filter(move |(k, c)| {
+                    y.len() >= (k + 1) * n
+                        && run.measured.len() >= (k + 1) * n
+                        && c.values.len() >= n
+                })
                 .map(move |(k, c)| {
                     let (mean, sigma) = stacking[k];
-                    let unit = |v: &[f64]| -> Vec<f64> {
-                        v[k * n..(k + 1) * n]
-                            .iter()
-                            .map(|x| x * sigma + mean)
-                            .collect()
-                    };
+                    let model = y[k * n..(k + 1) * n]
+                        .iter()
+                        .map(|x| x * sigma + mean)
+                        .collect();
                     let idx = run
                         .idx
                         .iter()
@@ -1178,8 +1180,8 @@ fn arm_sensors(b: &Base<'_, '_>, am: &crate::dataset::ArmMovesDataset) -> Vec<Ca
                         .collect();
                     (
                         c.name.as_str(),
-                        unit(y),
-                        unit(&run.measured),
+                        model,
+                        &c.values[..],
                         idx,
                         w2 / (sigma * sigma),
                     )
@@ -1193,7 +1195,7 @@ fn arm_sensors(b: &Base<'_, '_>, am: &crate::dataset::ArmMovesDataset) -> Vec<Ca
                 slices
                     .iter()
                     .filter(move |s| s.0 == name)
-                    .map(|s| (&s.1[..], &s.2[..], &s.3[..], s.4))
+                    .map(|s| (&s.1[..], s.2, &s.3[..], s.4))
             };
             let (before, after, g, c, corr) = regressed(samples)?;
             Some((name.to_string(), before, after, g, c, corr))
