@@ -59,6 +59,30 @@ pub struct PairAtRest {
 }
 
 impl CompiledPair {
+    /// Largest update of the constant-force tensioner's stretch, m, that a Newton
+    /// iteration whose angles converge to `tol` rad counts as converged. With relay
+    /// friction: the rope length `tol` stands for at the pair's smallest pulley (motor,
+    /// joint or relay), the tolerance of the step's angles in the same length (a
+    /// carriage error moves both ropes alike and leaves the joint torque unchanged to
+    /// first order). Until 2026-12-07 the relay step took the ideal pair's `1e-15 (1 +
+    /// L)` m: 1.6e-14 m on the rig's 15.2 m rope against the 2.5e-10 m of a relay or
+    /// output angle on its 25 mm pulley, and the carriage's test failed in 72% of the
+    /// relay rig's Newton iterations (a temporary count on a 5-run relay sweep). The
+    /// ideal pair keeps `1e-15 (1 + L)`: its angles converge to 1e-12 rad, which is
+    /// that length on a pulley of `1 + L` mm.
+    pub fn carriage_tolerance_m(&self, tol: f64) -> f64 {
+        match &self.relays {
+            Some(c) => {
+                let smallest = c.radius_m.iter().fold(
+                    self.spec.motor_radius_m.min(self.spec.joint_radius_m),
+                    |a, &r| a.min(r),
+                );
+                tol * smallest
+            }
+            None => 1e-15 * (1.0 + self.spec.length_m),
+        }
+    }
+
     /// Compiles `spec` (validated with [`PairSpec::validate`]; `field` names the pair in
     /// messages) for a plant of `ndofs` joints and steps of `dt_s`.
     pub fn new(spec: PairSpec, ndofs: usize, dt_s: f64, field: &str) -> Result<Self, DriveError> {

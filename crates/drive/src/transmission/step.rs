@@ -926,7 +926,7 @@ impl Drivetrain {
                 if pair.spec.tensioner == Tensioner::ConstantForce {
                     let d = rs.dz[c.iz_x()];
                     sv.x1[p] += d;
-                    if d.abs() > 1e-15 * (1.0 + pair.spec.length_m) {
+                    if d.abs() > pair.carriage_tolerance_m(tol) {
                         out.small = false;
                     }
                 }
@@ -1058,8 +1058,7 @@ impl Drivetrain {
             sv.dx[p] = d1;
             sv.th1[p] += d0;
             sv.x1[p] += d1;
-            if d0.abs() > tol * (1.0 + sv.th1[p].abs())
-                || d1.abs() > 1e-15 * (1.0 + pair.spec.length_m)
+            if d0.abs() > tol * (1.0 + sv.th1[p].abs()) || d1.abs() > pair.carriage_tolerance_m(tol)
             {
                 out.small = false;
             }
