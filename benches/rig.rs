@@ -1,14 +1,14 @@
 //! Rig benchmarks (issue: rope laws and rig): one rig step with four-element ropes, the
 //! same with elastic ropes (the MuJoCo anchor's rope), with ropes that stiffen with
-//! tension (catalog law and table), with a creep that grows with tension, and the
-//! whole 49-392 N Dyneema2 bode scenario. Run: `cargo bench --bench rig`.
+//! tension (catalog law and table), with a creep that grows with tension, with relay
+//! friction, and the whole 49-392 N Dyneema2 bode scenario. Run: `cargo bench --bench rig`.
 
 use std::hint::black_box;
 use std::path::Path;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 
-use longreach_drive::{RigModel, RigSpec};
+use longreach_drive::{RelayFriction, RigModel, RigSpec};
 use longreach_rope::{Catalog, LawKind, NonlinearCreep, RopeLaw, Table};
 use longreach_scenario::BodeScenario;
 
@@ -71,6 +71,22 @@ fn bench_step(c: &mut Criterion) {
                 )
             }),
         ),
+        // Relay pulleys with friction and inertia (`relay_friction` 0.02, 1e-4 kg*m^2, a
+        // sweep's relay-friction candidate): each rope split into four spans, the three
+        // relays' angles solved with the output's (Newton, chord iterations, the relay
+        // safeguards).
+        ("relay_friction_dyneema2", {
+            let params = Catalog::builtin().get("dyneema2").unwrap().clone();
+            let law = RopeLaw::from_params(&params, LawKind::FourElement).unwrap();
+            let mut spec = RigSpec::paper("dyneema2", law, 0.05, 147.0);
+            spec.relay_friction = Some(RelayFriction {
+                coefficient: 0.02,
+                inertia_kg_m2: 1e-4,
+                slip_rate_rad_s: RelayFriction::DEFAULT_SLIP_RATE_RAD_S,
+                coefficient_table: None,
+            });
+            RigModel::new(spec, 1e-3).unwrap()
+        }),
     ] {
         let amp = 4.5f64.to_radians();
         let w = std::f64::consts::TAU * 3.17;
