@@ -24,6 +24,8 @@ pub struct CompiledPair {
     pub n: f64,
     /// Spans and relay pulleys when the pair has relay friction.
     pub relays: Option<CompiledRelays>,
+    /// The smallest radius of its pulleys (motor, joint, relays), m.
+    smallest_radius_m: f64,
 }
 
 /// What the static map gives for one pair at a pose.
@@ -72,13 +74,7 @@ impl CompiledPair {
     /// that length on a pulley of `1 + L` mm.
     pub fn carriage_tolerance_m(&self, tol: f64) -> f64 {
         match &self.relays {
-            Some(c) => {
-                let smallest = c.radius_m.iter().fold(
-                    self.spec.motor_radius_m.min(self.spec.joint_radius_m),
-                    |a, &r| a.min(r),
-                );
-                tol * smallest
-            }
+            Some(_) => tol * self.smallest_radius_m,
             None => 1e-15 * (1.0 + self.spec.length_m),
         }
     }
@@ -95,7 +91,14 @@ impl CompiledPair {
         let row = spec.routing_row(ndofs);
         let nz = (0..ndofs).filter(|&k| row[k] != 0.0).collect();
         let relays = spec.relay_friction.map(|rf| CompiledRelays::new(&spec, rf));
+        let smallest_radius_m = relays
+            .iter()
+            .flat_map(|c| &c.radius_m)
+            .fold(spec.motor_radius_m.min(spec.joint_radius_m), |a, &r| {
+                a.min(r)
+            });
         Ok(Self {
+            smallest_radius_m,
             stepper,
             row,
             nz,

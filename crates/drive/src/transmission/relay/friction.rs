@@ -109,13 +109,13 @@ impl RelayFriction {
     }
 }
 
-/// `tanh(x)` within a few ulps at half the cost where the relays slip: from one `exp`
-/// where `|x| >= 0.5` (`(1 - t) / (1 + t)` with `t = exp(-2|x|) <= 1/e`, no
-/// cancellation), the library's `tanh` below (through `expm1`), and exactly `+-1` from
-/// 22 on, where `tanh` rounds to it. The relay step calls it for every relay at every
-/// evaluation: the library's `tanh` and its `expm1` took 14% of a relay rig's
-/// simulation (perf on a 5-run relay sweep's diagnosis), this form ~7% less wall time
-/// (2026-12-07).
+/// `tanh(x)` within a few ulps, cheaper where the relays slip: from one `exp` where
+/// `|x| >= 0.5` (`(1 - t) / (1 + t)` with `t = exp(-2|x|) <= 1/e`, no cancellation),
+/// the library's `tanh` below (through `expm1`), and exactly `+-1` from 22 on, where
+/// `tanh` rounds to it. The relay step calls it for every relay at every evaluation:
+/// the library's `tanh` and its `expm1` took 14% of the CPU of a 5-run relay sweep's
+/// diagnosis (perf), `exp` and the `tanh` left below 0.5 take 5%, and the diagnosis
+/// ~7% less wall time (2026-12-07).
 #[inline]
 fn tanh(x: f64) -> f64 {
     let a = x.abs();
