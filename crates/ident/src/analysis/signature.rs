@@ -987,8 +987,7 @@ const ARM_CALIBRATION_MIN_SHARE: f64 = 0.5;
 /// the largest gain error, of the channel whose calibration removes most.
 fn calibration(b: &Base<'_, '_>) -> Option<Signature> {
     let (prep, sims) = (b.prep, b.sims);
-    // per channel: (name, weight^2-scaled SSR before, after, g, c, residual-model
-    // correlation)
+    // every channel's (an arm's: every sensor's) calibration
     let per: Vec<Calibrated> = match &prep.ds.kind {
         DatasetKind::ArmMoves(am) => arm_sensors(b, am),
         _ => {
@@ -1017,14 +1016,13 @@ fn calibration(b: &Base<'_, '_>) -> Option<Signature> {
                             })
                         })
                     };
-                    let (before, after, g, c, corr) = regressed(samples)?;
-                    Some((name.to_string(), before, after, g, c, corr))
+                    regressed(name, samples)
                 })
                 .collect()
         }
     };
     let excess = b.excess;
-    let removed: f64 = per.iter().map(|p| p.1 - p.2).sum();
+    let removed: f64 = per.iter().map(Calibrated::removed).sum();
     let min_share = if prep.kind == DataKind::ArmMoves {
         ARM_CALIBRATION_MIN_SHARE
     } else {
@@ -1035,18 +1033,18 @@ fn calibration(b: &Base<'_, '_>) -> Option<Signature> {
     }
     let best = per
         .iter()
-        .max_by(|a, b| (a.1 - a.2).total_cmp(&(b.1 - b.2)))?;
-    let unit = super::compare::unit_of(&best.0);
+        .max_by(|a, b| a.removed().total_cmp(&b.removed()))?;
+    let unit = super::compare::unit_of(&best.name);
     let listed: Vec<String> = per
         .iter()
-        .filter(|p| p.1 - p.2 >= 0.01 * removed)
+        .filter(|p| p.removed() >= 0.01 * removed)
         .map(|p| {
             format!(
                 "{}: g {:.4}, c {}, {:.0}%",
-                p.0,
-                p.3,
-                quantity(p.4, super::compare::unit_of(&p.0)),
-                100.0 * (p.1 - p.2) / excess
+                p.name,
+                p.g,
+                quantity(p.c, super::compare::unit_of(&p.name)),
+                100.0 * p.removed() / excess
             )
         })
         .collect();
@@ -1054,21 +1052,21 @@ fn calibration(b: &Base<'_, '_>) -> Option<Signature> {
         kind: SignatureKind::Calibration,
         evidence: format!(
             "the residual of {} follows that channel itself (correlation {:.2} with the model's channel)",
-            best.0, best.5
+            best.name, best.corr
         ),
         term: format!(
             "a calibration of every measured channel, measured = g model + c (per channel, common to the runs); the gain error of {}, g - 1",
-            best.0
+            best.name
         ),
         note: format!(
             "a sensor's gain or zero, or a radius ratio; of the excess over every channel, by channel: {}",
             listed.join("; ")
         ),
-        size: best.3 - 1.0,
+        size: best.g - 1.0,
         unit: "1",
         equivalent: Some(Equivalent {
             what: "its offset c",
-            value: best.4,
+            value: best.c,
             unit,
         }),
         share_removed: removed / excess,
@@ -1076,15 +1074,29 @@ fn calibration(b: &Base<'_, '_>) -> Option<Signature> {
     })
 }
 
-/// A channel's calibration ([`calibration`]): its name, its weighted SSR before and
-/// after, `g`, `c` and the residual's correlation with the model's channel.
-type Calibrated = (String, f64, f64, f64, f64, f64);
+/// A channel's calibration ([`calibration`], [`regressed`]): `measured = g model + c`.
+struct Calibrated {
+    name: String,
+    /// The channel's weighted SSR before and after the calibration.
+    before: f64,
+    after: f64,
+    g: f64,
+    c: f64,
+    /// The correlation of the residual with the model's channel.
+    corr: f64,
+}
 
-/// The linear least squares `measured = g model + c` over `samples`' slices (model,
-/// measured, the analysed indices, the weight squared): the weighted SSR before and
-/// after, `g`, `c` and the correlation of the residual with the model's channel;
-/// `None` with fewer than 3 samples.
-fn regressed<'s, I>(samples: impl Fn() -> I) -> Option<(f64, f64, f64, f64, f64)>
+impl Calibrated {
+    /// What the calibration removes of the channel's weighted SSR.
+    fn removed(&self) -> f64 {
+        self.before - self.after
+    }
+}
+
+/// The calibration of the channel `name` by the linear least squares `measured = g
+/// model + c` over `samples`' slices (model, measured, the analysed indices, the weight
+/// squared); `None` with fewer than 3 samples.
+fn regressed<'s, I>(name: &str, samples: impl Fn() -> I) -> Option<Calibrated>
 where
     I: Iterator<Item = (&'s [f64], &'s [f64], &'s [usize], f64)>,
 {
@@ -1126,7 +1138,14 @@ where
     } else {
         0.0
     };
-    Some((before, after.min(before), g, c, corr))
+    Some(Calibrated {
+        name: name.to_string(),
+        before,
+        after: after.min(before),
+        g,
+        c,
+        corr,
+    })
 }
 
 /// [`calibration`]'s channels on an arm: every sensor of the stacked channel
@@ -1197,8 +1216,7 @@ fn arm_sensors(b: &Base<'_, '_>, am: &crate::dataset::ArmMovesDataset) -> Vec<Ca
                     .filter(move |s| s.0 == name)
                     .map(|s| (&s.1[..], s.2, &s.3[..], s.4))
             };
-            let (before, after, g, c, corr) = regressed(samples)?;
-            Some((name.to_string(), before, after, g, c, corr))
+            regressed(name, samples)
         })
         .collect()
 }
