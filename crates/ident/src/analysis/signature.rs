@@ -61,6 +61,10 @@ pub enum SignatureKind {
     /// The residual of a measured channel follows the channel itself: the measurement
     /// is the model's scaled and offset (a sensor's gain or zero, a radius ratio).
     Calibration,
+    /// The residual at the test frequencies is what a second mode at the output leaves:
+    /// part of the output's inertia sits behind a compliant shaft (a load, a coupling,
+    /// a flexible link) that the model holds rigid.
+    SecondMode,
 }
 
 /// The same term's size in another quantity (e.g. a dry torque as the angle offset it
@@ -131,7 +135,7 @@ impl Signature {
 /// The explanation's "Residual signature: ..." sentence.
 pub fn describe(signatures: &[Signature]) -> String {
     if signatures.is_empty() {
-        "Residual signature: none of the known patterns (phase error growing with frequency, the velocity's sign, harmonics, tension or amplitude dependence, drift, a periodic component, a channel's calibration).".into()
+        "Residual signature: none of the known patterns (phase error growing with frequency, the velocity's sign, harmonics, tension or amplitude dependence, drift, a periodic component, a second mode, a channel's calibration).".into()
     } else {
         let parts: Vec<String> = signatures.iter().map(Signature::sentence).collect();
         format!("Residual signature: {}.", parts.join("; "))
@@ -572,6 +576,22 @@ pub fn signatures(
             }
         }
     }
+    if prep.kind == DataKind::SineSweep {
+        // (a mode that does little more than the output's inertia or damping off says
+        // nothing of a mode: on a hidden dry friction a "mode" at 0.5 Hz removes 68%
+        // and a damping 66%)
+        if let Ok((t, simple_after)) = second_mode(b) {
+            let (share, _) = b.shares(t.ssr_after);
+            let (simple, _) = b.shares(simple_after);
+            if share >= MODE_MIN_SHARE && share - simple >= MODE_MARGIN {
+                out.push(b.signature(
+                    SignatureKind::SecondMode,
+                    "the residual at the test frequencies is what a second mode at the output leaves".into(),
+                    Ok(t),
+                ));
+            }
+        }
+    }
     if let Some(sig) = calibration(b) {
         out.push(sig);
     }
@@ -852,6 +872,303 @@ fn friction_response(b: &Base<'_, '_>, r: usize) -> Result<Vec<Vec<f64>>, IdentE
                 .collect())
         })
         .collect()
+}
+
+/// Least share of the excess error a second mode must remove to be reported.
+const MODE_MIN_SHARE: f64 = 0.2;
+
+/// Least share of the excess error a second mode must remove beyond the better of the
+/// output's inertia or its damping off ([`second_mode`]) to be reported.
+const MODE_MARGIN: f64 = 0.1;
+
+/// One test frequency's step as [`second_mode`] sees it.
+struct ModeStep {
+    /// Run.
+    run: usize,
+    /// Test frequency, Hz.
+    f_hz: f64,
+    /// The input's fundamental.
+    x: Complex64,
+    /// The residual's fundamental.
+    r: Complex64,
+    /// The model's small-signal response at its own values.
+    h0: Complex64,
+    /// Half the step's analysed samples.
+    half_n: f64,
+}
+
+/// The least-squares problem of [`second_mode`]: the model's free values (`n_base`)
+/// then the load's `(phi, f2, zeta)`; per step, `sqrt(N/2) (R + Z)`.
+struct ModeProblem<'b, 'p, 'a> {
+    b: &'b Base<'p, 'a>,
+    steps: &'b [ModeStep],
+    n_base: usize,
+    term: ShaftTerm,
+}
+
+/// A linear term at the output shaft: the dynamic stiffness it adds to the pulley's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum ShaftTerm {
+    /// A load behind a torsional shaft, `(phi, f2, zeta)` ([`second_mode`]).
+    Mode,
+    /// A viscous torque `i dc w`, `(dc)` in N*m*s.
+    Damping,
+    /// The output's inertia off by `-di I w^2`, `(di)` relative.
+    Inertia,
+}
+
+impl ShaftTerm {
+    /// The dynamic stiffness the term adds at `w` to an output of inertia `inertia`.
+    fn added(self, v: &[f64], w: f64, inertia: f64) -> Complex64 {
+        match self {
+            Self::Mode => {
+                let j2 = v[0] * inertia;
+                let k2 = j2 * (TAU * v[1]).powi(2);
+                let c2 = 2.0 * v[2] * (k2 * j2).sqrt();
+                -(j2 * j2 * w.powi(4)) / Complex64::new(k2 - j2 * w * w, c2 * w)
+            }
+            Self::Damping => Complex64::new(0.0, v[0] * w),
+            Self::Inertia => Complex64::new(-v[0] * inertia * w * w, 0.0),
+        }
+    }
+}
+
+impl ModeProblem<'_, '_, '_> {
+    /// Every step's `R + Z` (unscaled) at `v`.
+    fn corrected(&self, v: &[f64]) -> Result<Vec<Complex64>, IdentError> {
+        let prep = self.b.prep;
+        let not_sweep = || IdentError::NotASweep {
+            kind: prep.ds.kind.name(),
+        };
+        let (xb, load) = v.split_at(self.n_base);
+        let model = if self.n_base > 0 {
+            Some(self.b.model.with_values(xb, prep.runs.len()))
+        } else {
+            None
+        };
+        let params = (0..prep.runs.len())
+            .map(|r| model.as_ref().unwrap_or(self.b.model).plant_params(r))
+            .collect::<Result<Vec<_>, _>>()?;
+        let rigs = params
+            .iter()
+            .map(|p| rig_of(self.b, p).ok_or_else(not_sweep))
+            .collect::<Result<Vec<_>, _>>()?;
+        self.steps
+            .iter()
+            .map(|s| {
+                let (r1, r2, _, inertia, c) = rigs[s.run];
+                let w = TAU * s.f_hz;
+                let h = prep
+                    .plant
+                    .small_signal_response(&params[s.run], s.run, s.f_hz)
+                    .ok_or_else(not_sweep)?;
+                let g = (1.0 - (r2 / r1) * h) / Complex64::new(-inertia * w * w, c * w);
+                let dd = self.term.added(load, w, inertia);
+                Ok(s.r + (h / (1.0 + g * dd) - s.h0) * s.x)
+            })
+            .collect()
+    }
+
+    /// The steps' squared error at their fundamental at `v` (infinite where the model
+    /// fails).
+    fn ssr(&self, v: &[f64]) -> f64 {
+        self.corrected(v).map_or(f64::INFINITY, |c| {
+            c.iter()
+                .zip(self.steps)
+                .map(|(d, s)| s.half_n * d.norm_sqr())
+                .sum()
+        })
+    }
+}
+
+impl Residuals for ModeProblem<'_, '_, '_> {
+    fn residuals(&self, v: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
+        out.clear();
+        for (d, s) in self.corrected(v)?.iter().zip(self.steps) {
+            let d = d * s.half_n.sqrt();
+            out.push(d.re);
+            out.push(d.im);
+        }
+        Ok(())
+    }
+}
+
+/// A part `J2 = phi I` of the output's inertia `I` behind a torsional shaft of
+/// stiffness `k2 = J2 (2 pi f2)^2` and damping `c2 = 2 zeta sqrt(k2 J2)`, the pulley
+/// (and its encoder) keeping `I - J2`. On the output's small-signal dynamics the load
+/// adds the dynamic stiffness `dD = -J2^2 w^4 / (k2 + i c2 w - J2 w^2)` to the pulley's
+/// `D = -I w^2 + i C w` (rigid at low frequency, the pulley alone far above the load's
+/// mode), so the response becomes `H / (1 + G dD)` with `G = (1 - (r2/r1) H) / D` the
+/// shaft's torque-to-angle response ([`dry_friction`]). A step's correction is the
+/// change of its fundamental, `Z = (H_c - H_0) X`, with `H_0` the model's response, `H_c`
+/// the load's with the model's free values refitted (a load lowers the first resonance,
+/// which the baseline's stiffness had matched) and `X` the input's fundamental
+/// (single-bin DFT over the step's whole cycles); it changes the step's squared error by
+/// exactly `N/2 (|R + Z|^2 - |R|^2)` (`R` the residual's fundamental, `N` samples).
+/// Least squares on that from a grid of starts over `phi` and `f2`. Also returns the
+/// squared error the simpler terms leave, the better of the output's inertia off
+/// (`-di I w^2`) and its damping off (`i dc w`), fitted alike: what a mode must beat.
+fn second_mode(b: &Base<'_, '_>) -> Result<(Term, f64), IdentError> {
+    let prep = b.prep;
+    let not_sweep = || IdentError::NotASweep {
+        kind: prep.ds.kind.name(),
+    };
+    let DatasetKind::SineSweep(sw) = &prep.ds.kind else {
+        return Err(not_sweep());
+    };
+    let mut steps: Vec<ModeStep> = Vec::new();
+    let mut inertia = 0.0;
+    let (mut f_lo, mut f_hi) = (f64::INFINITY, 0.0f64);
+    for (r, run) in prep.runs.iter().enumerate() {
+        let p = b.params(r)?;
+        inertia = rig_of(b, &p).ok_or_else(not_sweep)?.3;
+        let input = crate::sim::drive_input(&sw.runs[r]);
+        let y = &b.sims[r];
+        for &(f, a, e) in &run.segments {
+            let res: Vec<f64> = (a..e).map(|i| y[i] - run.measured[i]).collect();
+            steps.push(ModeStep {
+                run: r,
+                f_hz: f,
+                x: dft(&input[a..e], run.dt_s, f),
+                r: dft(&res, run.dt_s, f),
+                h0: prep
+                    .plant
+                    .small_signal_response(&p, r, f)
+                    .ok_or_else(not_sweep)?,
+                half_n: 0.5 * (e - a) as f64,
+            });
+            f_lo = f_lo.min(f);
+            f_hi = f_hi.max(f);
+        }
+    }
+    if steps.is_empty() || inertia <= 0.0 {
+        return Err(not_sweep());
+    }
+    // the steps' squared error at their fundamental, which a term changes
+    let fundamental: f64 = steps.iter().map(|s| s.half_n * s.r.norm_sqr()).sum();
+    let spec = |name: &str, unit: &str, bounds: (f64, f64), log_scale: bool| ParamSpec {
+        name: name.into(),
+        unit: unit.into(),
+        initial: 0.0,
+        lower: bounds.0,
+        upper: bounds.1,
+        log_scale,
+    };
+    let (f2_lo, f2_hi) = (0.5 * f_lo, 10.0 * f_hi);
+    let mut starts = Vec::new();
+    for phi in [0.2, 0.5, 0.8] {
+        for k in 0..6 {
+            let f2 = f_hi * 0.5 * 20f64.powf(f64::from(k) / 5.0);
+            starts.push(vec![phi, f2.clamp(1.01 * f2_lo, 0.99 * f2_hi), 0.02]);
+        }
+    }
+    let (mode_ssr, v) = fit_shaft_term(
+        b,
+        &steps,
+        ShaftTerm::Mode,
+        &[
+            spec("load_share", "1", (1e-3, 1.0 - 1e-3), false),
+            spec("f2_hz", "Hz", (f2_lo, f2_hi), true),
+            spec("zeta", "1", (1e-4, 2.0), true),
+        ],
+        &starts,
+    )?;
+    // The simpler terms a mode must beat: the output's inertia or damping off.
+    let damping = fit_shaft_term(
+        b,
+        &steps,
+        ShaftTerm::Damping,
+        &[spec("dc", "N*m*s", (-1e3, 1e3), false)],
+        &[vec![0.0]],
+    )
+    .map_or(f64::INFINITY, |x| x.0);
+    let inertia_off = fit_shaft_term(
+        b,
+        &steps,
+        ShaftTerm::Inertia,
+        &[spec("di", "1", (-0.9, 10.0), false)],
+        &[vec![0.0]],
+    )
+    .map_or(f64::INFINITY, |x| x.0);
+    let j2 = v[0] * inertia;
+    let k2 = j2 * (TAU * v[1]).powi(2);
+    // A mode far above the sweep shows only through its tail, -J2 w^4 / (2 pi f2)^2 to
+    // first order: the fit then runs the load's share to a bound.
+    let apart = if v[0] <= 2e-3 || v[0] >= 1.0 - 2e-3 {
+        format!(
+            "; J2 and f2 are not determined apart (the load's share on its bound): the sweep sees J2 / f2^2 = {}, the tail of a mode above it",
+            quantity(j2 / (v[1] * v[1]), "kg*m^2/Hz^2")
+        )
+    } else {
+        String::new()
+    };
+    Ok((
+        Term {
+            term: "a load behind a torsional shaft at the output (a second mode), its frequency with the pulley held f2".into(),
+            note: format!(
+                "J2 = {} of the output's {}, k2 = {}, damping ratio {:.3}, the model's own values refitted with it{apart}; an estimate from each test frequency's fundamental through the rig's small-signal dynamics",
+                quantity(j2, "kg*m^2"),
+                quantity(inertia, "kg*m^2"),
+                quantity(k2, "N*m/rad"),
+                v[2]
+            ),
+            size: v[1],
+            unit: "Hz",
+            equivalent: Some(Equivalent {
+                what: "the load's share of the output's inertia J2 / I",
+                value: v[0],
+                unit: "1",
+            }),
+            ssr_after: b.ssr + mode_ssr - fundamental,
+        },
+        b.ssr + damping.min(inertia_off) - fundamental,
+    ))
+}
+
+/// The shaft term `term` (its parameters `term_specs`) fitted with the model's free
+/// values on the steps' fundamentals ([`second_mode`]) from each of `starts` (the
+/// term's values; the model's own values with each): the least squared error there and
+/// the term's values.
+fn fit_shaft_term(
+    b: &Base<'_, '_>,
+    steps: &[ModeStep],
+    term: ShaftTerm,
+    term_specs: &[ParamSpec],
+    starts: &[Vec<f64>],
+) -> Result<(f64, Vec<f64>), IdentError> {
+    let mut specs = b.model.fit_specs(b.prep.runs.len());
+    let n_base = specs.len();
+    let problem = ModeProblem {
+        b,
+        steps,
+        n_base,
+        term,
+    };
+    specs.extend(term_specs.iter().cloned());
+    let own: Vec<f64> = specs[..n_base].iter().map(|s| s.initial).collect();
+    let opts = FitOptions {
+        intervals: false,
+        ..FitOptions::default()
+    };
+    let mut best: (f64, Vec<f64>) = (f64::INFINITY, Vec::new());
+    for start in starts {
+        let mut v = own.clone();
+        v.extend(start);
+        for (s, &x) in specs.iter_mut().zip(&v) {
+            s.initial = crate::fitting::strictly_inside(x, s.lower, s.upper);
+        }
+        let v = fit(&problem, &specs, &opts).map_or(v, |r| r.values);
+        let s = problem.ssr(&v);
+        if s < best.0 {
+            best = (s, v);
+        }
+    }
+    if !best.0.is_finite() {
+        return Err(IdentError::NotASweep {
+            kind: b.prep.ds.kind.name(),
+        });
+    }
+    Ok((best.0, best.1[n_base..].to_vec()))
 }
 
 /// The residual's 2f and 3f components of every frequency step (single-bin DFT over

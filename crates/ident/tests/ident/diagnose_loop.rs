@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use longreach_drive::effects::{self, DataKind};
 use longreach_ident::analysis::{
     compare, diagnose, diagnose_without, fit_model, fit_model_from, fit_model_from_starts,
-    Candidate, Prepared, Start,
+    Candidate, Prepared, SignatureKind, Start,
 };
 use longreach_ident::model::{BaseParam, Model, ModelError, ParamDef};
 use longreach_ident::synth::{self, CyclicOptions, RelaxationOptions};
@@ -444,6 +444,17 @@ fn a_mujoco_sweep_with_a_second_mode_names_nothing() {
             d.explanation
         );
     }
+    // What to add instead: the residual's signature is a second mode, the load's own
+    // mode with the pulley held at sqrt(40 / 0.02) / 2 pi = 7.12 Hz.
+    let mode = d
+        .signatures
+        .iter()
+        .find(|s| s.kind == SignatureKind::SecondMode)
+        .unwrap_or_else(|| panic!("no second mode: {}", d.explanation));
+    assert!((mode.size / 7.12 - 1.0).abs() < 0.1, "{mode:?}");
+    assert!(d
+        .explanation
+        .contains("what a second mode at the output leaves"));
 }
 
 /// Two effects hidden at once are both found, in either order: the first diagnosis

@@ -89,6 +89,12 @@ fn hidden_dry_friction_is_quantified_as_a_dry_torque() {
     // response to a torque of that sign (0.96).
     let s = find(&sigs, SignatureKind::VelocitySign);
     assert_eq!(s.unit, "N*m");
+    // A "mode" at 0.5 Hz would remove 68%, the output's damping off 66%: no mode is
+    // reported for what a damping explains as well.
+    assert!(
+        sigs.iter().all(|s| s.kind != SignatureKind::SecondMode),
+        "{sigs:#?}"
+    );
     // Measured: 0.0208 N*m (+4%), removing 86% of the excess (92% of the angle's). The term is the dry
     // torque's first-order effect through the rig's linear dynamics: it neglects terms
     // of relative size x = C_eq / C, the torque's equivalent damping (describing
@@ -360,4 +366,24 @@ fn diagnose_reports_the_signatures_when_no_effect_is_decisive() {
     assert!(d
         .explanation
         .contains("a delay of the output tau = 12.0 ms would remove"));
+}
+
+/// An effect outside the catalog in data longreach did not make: MuJoCo's rig whose
+/// output is the pulley (0.0084 kg*m^2) and a load of 0.02 kg*m^2 behind a shaft of
+/// 40 N*m/rad and 0.01 N*m*s (`tools/mujoco_rig_sweep.py`, data/examples/README.md):
+/// the load's own mode with the pulley held at sqrt(40 / 0.02) / 2 pi = 7.12 Hz, 70% of
+/// the output's 0.0284 kg*m^2 behind the shaft. Nothing in the catalog explains it
+/// (`a_mujoco_sweep_with_a_second_mode_names_nothing`); the signature says what to add.
+#[test]
+fn a_second_mode_in_mujoco_data_is_quantified_as_a_load_behind_a_shaft() {
+    let ds = example("example_mujoco_shaft");
+    let sigs = baseline_signatures(&ds, &Model::baseline(&ds).unwrap());
+    let s = find(&sigs, SignatureKind::SecondMode);
+    assert_eq!(s.unit, "Hz");
+    let truth_hz = (40.0f64 / 0.02).sqrt() / std::f64::consts::TAU;
+    assert!((s.size / truth_hz - 1.0).abs() < 0.1, "{s:?}");
+    let share = s.equivalent.as_ref().unwrap().value;
+    assert!((share - 0.02 / 0.0284).abs() < 0.2, "{s:?}");
+    assert!(s.share_removed > 0.2, "{s:?}");
+    assert!(s.sentence().contains("a second mode"), "{}", s.sentence());
 }
