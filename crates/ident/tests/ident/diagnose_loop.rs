@@ -457,6 +457,34 @@ fn a_mujoco_sweep_with_a_second_mode_names_nothing() {
         .contains("what a second mode at the output leaves"));
 }
 
+/// The same with the load's mode inside the sweep: 0.01 of the 0.0284 kg*m^2 behind a
+/// shaft of 8 N*m/rad and 0.005 N*m*s (the load's mode with the pulley held at
+/// sqrt(8 / 0.01) / 2 pi = 4.50 Hz, damping ratio 0.0088). Nothing is named, and the
+/// signature recovers the load: its frequency, its share of the inertia and its shaft.
+#[test]
+fn a_mujoco_sweep_with_a_mode_inside_the_band_names_nothing_and_finds_the_load() {
+    let ds = Dataset::load(example("example_mujoco_mode")).unwrap();
+    let prep = Prepared::new(&ds).unwrap();
+    let (d, base, winner) = diagnose(&prep, &Model::baseline(&ds).unwrap()).unwrap();
+    assert!(base.nrmse > 10.0 * base.noise_floor, "{}", base.nrmse);
+    assert!(
+        d.missing_effects.is_empty() && winner.is_none(),
+        "{}",
+        d.explanation
+    );
+    let mode = d
+        .signatures
+        .iter()
+        .find(|s| s.kind == SignatureKind::SecondMode)
+        .unwrap_or_else(|| panic!("no second mode: {}", d.explanation));
+    // Measured: 4.649 Hz, J2 / I 0.325, k2 7.87 N*m/rad, 62% of the excess.
+    let truth_hz = (8.0f64 / 0.01).sqrt() / std::f64::consts::TAU;
+    assert!((mode.size / truth_hz - 1.0).abs() < 0.05, "{mode:?}");
+    let share = mode.equivalent.as_ref().unwrap().value;
+    assert!((share - 0.01 / 0.0284).abs() < 0.05, "{mode:?}");
+    assert!(mode.share_removed > 0.5, "{mode:?}");
+}
+
 /// Two effects hidden at once are both found, in either order: the first diagnosis
 /// names one (or both, through its pair step) and `diagnose --model` on the model
 /// holding it names the other; the model then fits to the floor and a third pass names
