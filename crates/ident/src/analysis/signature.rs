@@ -65,6 +65,10 @@ pub enum SignatureKind {
     /// part of the output's inertia sits behind a compliant shaft (a load, a coupling,
     /// a flexible link) that the model holds rigid.
     SecondMode,
+    /// The residual at the test frequencies is what another viscous damping of the
+    /// output leaves (or, the ropes' stiffness scaled alike, another inertia: a rig
+    /// constant misstated).
+    OutputDamping,
 }
 
 /// The same term's size in another quantity (e.g. a dry torque as the angle offset it
@@ -135,7 +139,7 @@ impl Signature {
 /// The explanation's "Residual signature: ..." sentence.
 pub fn describe(signatures: &[Signature]) -> String {
     if signatures.is_empty() {
-        "Residual signature: none of the known patterns (phase error growing with frequency, the velocity's sign, harmonics, tension or amplitude dependence, drift, a periodic component, a second mode, a channel's calibration).".into()
+        "Residual signature: none of the known patterns (phase error growing with frequency, the velocity's sign, harmonics, tension or amplitude dependence, drift, a periodic component, a second mode or the output's damping, a channel's calibration).".into()
     } else {
         let parts: Vec<String> = signatures.iter().map(Signature::sentence).collect();
         format!("Residual signature: {}.", parts.join("; "))
@@ -274,6 +278,9 @@ struct SweepTerm<'t> {
     specs: Vec<ParamSpec>,
     /// The values at which the term does nothing.
     neutral: Vec<f64>,
+    /// Further values the simulation's fit may start from (with the model's own
+    /// values), when closer to the data than the analytic fit's and the neutral ones.
+    start: Option<Vec<f64>>,
     /// Refit the baseline's free parameters with it.
     refit_base: bool,
     /// Puts the term's values into run `r`'s plant numbers.
@@ -421,11 +428,18 @@ fn fit_sweep_term(
     .map_or(initial.clone(), |r| r.values);
     let mut neutral: Vec<f64> = initial[..tf.n_base].to_vec();
     neutral.extend(&term.neutral);
-    let start = if tf.ssr(&analytic) <= tf.ssr(&neutral) {
+    let mut start = if tf.ssr(&analytic) <= tf.ssr(&neutral) {
         analytic
     } else {
         neutral
     };
+    if let Some(given) = &term.start {
+        let mut v: Vec<f64> = initial[..tf.n_base].to_vec();
+        v.extend(given);
+        if tf.ssr(&v) < tf.ssr(&start) {
+            start = v;
+        }
+    }
     for (s, &v) in specs.iter_mut().zip(&start) {
         s.initial = crate::fitting::strictly_inside(v, s.lower, s.upper);
     }
@@ -576,22 +590,6 @@ pub fn signatures(
             }
         }
     }
-    if prep.kind == DataKind::SineSweep {
-        // (a mode that does little more than the output's inertia or damping off says
-        // nothing of a mode: on a hidden dry friction a "mode" at 0.5 Hz removes 64%
-        // and a damping 62%)
-        if let Ok((t, simple_after)) = second_mode(b) {
-            let (share, _) = b.shares(t.ssr_after);
-            let (simple, _) = b.shares(simple_after);
-            if share >= MODE_MIN_SHARE && share - simple >= MODE_MARGIN {
-                out.push(b.signature(
-                    SignatureKind::SecondMode,
-                    "the residual at the test frequencies is what a second mode at the output leaves".into(),
-                    Ok(t),
-                ));
-            }
-        }
-    }
     if let Some(sig) = calibration(b) {
         out.push(sig);
     }
@@ -610,6 +608,43 @@ pub fn signatures(
             ),
             amplitude_damping(b, cmp),
         ));
+    }
+    // The shaft's linear terms have no statistic of their own, only their share: each
+    // is reported where no term above explains more. A mode that does little more than
+    // the output's damping off says nothing of a mode (on a hidden dry friction a
+    // "mode" at 0.5 Hz removes 64% and a damping 62%): the damping is reported instead
+    // where it removes as much, its share measured on the simulation (tried there from
+    // half the bar on the small-signal picture).
+    if prep.kind == DataKind::SineSweep {
+        if let Ok((mode, damping)) = second_mode(b) {
+            let best = out
+                .iter()
+                .map(|s| s.share_removed)
+                .filter(|s| s.is_finite())
+                .fold(0.0, f64::max);
+            let (share, _) = b.shares(mode.ssr_after);
+            let (simple, _) = b.shares(damping.ssr_after);
+            if share >= MODE_MIN_SHARE.max(best) && share - simple >= MODE_MARGIN {
+                out.push(b.signature(
+                    SignatureKind::SecondMode,
+                    "the residual at the test frequencies is what a second mode at the output leaves".into(),
+                    Ok(mode),
+                ));
+            } else if simple >= 0.5 * MODE_MIN_SHARE {
+                if let Ok(t) = output_damping(b, cmp, damping.size) {
+                    if b.shares(t.ssr_after).0 >= MODE_MIN_SHARE.max(best) {
+                        out.push(b.signature(
+                            SignatureKind::OutputDamping,
+                            format!(
+                                "the residual at the test frequencies is what {} damping of the output leaves",
+                                if t.size < 0.0 { "a lower" } else { "a higher" }
+                            ),
+                            Ok(t),
+                        ));
+                    }
+                }
+            }
+        }
     }
     out
 }
@@ -712,6 +747,7 @@ fn delay(b: &Base<'_, '_>, cmp: &Comparison) -> Result<Term, IdentError> {
             log_scale: false,
         }],
         neutral: vec![0.0],
+        start: None,
         refit_base: true,
         on_plant: &|_, _, _| {},
         sensor: Some(SensorTerm {
@@ -877,8 +913,8 @@ fn friction_response(b: &Base<'_, '_>, r: usize) -> Result<Vec<Vec<f64>>, IdentE
 /// Least share of the excess error a second mode must remove to be reported.
 const MODE_MIN_SHARE: f64 = 0.2;
 
-/// Least share of the excess error a second mode must remove beyond the better of the
-/// output's inertia or its damping off ([`second_mode`]) to be reported.
+/// Least share of the excess error a second mode must remove beyond the output's
+/// damping off ([`second_mode`]; its inertia off is the same term) to be reported.
 const MODE_MARGIN: f64 = 0.1;
 
 /// One test frequency's step as [`second_mode`] sees it.
@@ -915,8 +951,6 @@ enum ShaftTerm {
     Mode,
     /// A viscous torque `i dc w`, `(dc)` in N*m*s.
     Damping,
-    /// The output's inertia off by `-di I w^2`, `(di)` relative.
-    Inertia,
 }
 
 impl ShaftTerm {
@@ -931,7 +965,6 @@ impl ShaftTerm {
                 -(j2 * j2 * w.powi(4)) / Complex64::new(k2 - j2 * w * w, c2 * w)
             }
             Self::Damping => Complex64::new(0.0, v[0] * w),
-            Self::Inertia => Complex64::new(-v[0] * inertia * w * w, 0.0),
         }
     }
 }
@@ -1011,10 +1044,12 @@ impl Residuals for ModeProblem<'_, '_, '_> {
 /// Least squares on that from a grid of starts over `phi` and `f2`. The SSR after is
 /// the baseline's less what the term removes beyond the model's free values refitted
 /// alone on the same picture ([`ShaftTerm::Rigid`]: the simulation's fit has spent what
-/// they gain, the picture's optimum not being the simulation's). Also returns the SSR
-/// after the simpler terms, the better of the output's inertia off (`-di I w^2`) and
-/// its damping off (`i dc w`), fitted alike: what a mode must beat.
-fn second_mode(b: &Base<'_, '_>) -> Result<(Term, f64), IdentError> {
+/// they gain, the picture's optimum not being the simulation's). Also returns the
+/// simpler term a mode must beat, fitted alike: the output's damping off, `i dc w`
+/// (its inertia off, `-di I w^2`, is the same term once the ropes' stiffness is
+/// refitted: only `C / I` is left), whose share [`output_damping`] then measures on the
+/// simulation.
+fn second_mode(b: &Base<'_, '_>) -> Result<(Term, Term), IdentError> {
     let prep = b.prep;
     let not_sweep = || IdentError::NotASweep {
         kind: prep.ds.kind.name(),
@@ -1023,11 +1058,11 @@ fn second_mode(b: &Base<'_, '_>) -> Result<(Term, f64), IdentError> {
         return Err(not_sweep());
     };
     let mut steps: Vec<ModeStep> = Vec::new();
-    let mut inertia = 0.0;
+    let (mut inertia, mut damping) = (0.0, 0.0);
     let (mut f_lo, mut f_hi) = (f64::INFINITY, 0.0f64);
     for (r, run) in prep.runs.iter().enumerate() {
         let p = b.params(r)?;
-        inertia = rig_of(b, &p).ok_or_else(not_sweep)?.3;
+        (inertia, damping) = rig_of(b, &p).map(|x| (x.3, x.4)).ok_or_else(not_sweep)?;
         let input = crate::sim::drive_input(&sw.runs[r]);
         let y = &b.sims[r];
         for &(f, a, e) in &run.segments {
@@ -1083,22 +1118,16 @@ fn second_mode(b: &Base<'_, '_>) -> Result<(Term, f64), IdentError> {
         &starts,
     )?;
     // The simpler terms a mode must beat: the output's inertia or damping off.
-    let damping = fit_shaft_term(
+    // The simpler term a mode must beat: the output's damping off. (Its inertia off is
+    // the same term: the ropes' stiffness refitted with it, only C / I is left.)
+    let (dc_ssr, dc) = fit_shaft_term(
         b,
         &steps,
         ShaftTerm::Damping,
-        &[spec("dc", "N*m*s", (-1e3, 1e3), false)],
+        &[spec("dc", "N*m*s", (-0.999 * damping, 1e3), false)],
         &[vec![0.0]],
-    )
-    .map_or(f64::INFINITY, |x| x.0);
-    let inertia_off = fit_shaft_term(
-        b,
-        &steps,
-        ShaftTerm::Inertia,
-        &[spec("di", "1", (-0.9, 10.0), false)],
-        &[vec![0.0]],
-    )
-    .map_or(f64::INFINITY, |x| x.0);
+    )?;
+    let dc = dc[0];
     let j2 = v[0] * inertia;
     let k2 = j2 * (TAU * v[1]).powi(2);
     // A mode far above the sweep shows only through its tail, -J2 w^4 / (2 pi f2)^2 to
@@ -1130,7 +1159,22 @@ fn second_mode(b: &Base<'_, '_>) -> Result<(Term, f64), IdentError> {
             }),
             ssr_after: after(mode_ssr),
         },
-        after(damping.min(inertia_off)),
+        Term {
+            term: "the output's viscous damping off by dc".into(),
+            note: format!(
+                "{} against the rig's {}, the model's own values refitted with it; an estimate from each test frequency's fundamental through the rig's small-signal dynamics",
+                if dc < 0.0 { "less damping" } else { "more damping" },
+                quantity(damping, "N*m*s")
+            ),
+            size: dc,
+            unit: "N*m*s",
+            equivalent: Some(Equivalent {
+                what: "or, the ropes' stiffness scaled alike, the output's inertia times C / (C + dc)",
+                value: damping / (damping + dc),
+                unit: "1",
+            }),
+            ssr_after: after(dc_ssr),
+        },
     ))
 }
 
@@ -1720,6 +1764,7 @@ fn tension_stiffness(b: &Base<'_, '_>, cmp: &Comparison) -> Result<Term, IdentEr
     let term = SweepTerm {
         specs: per_run_specs(runs.len(), "k1_per_run", "1", 1.0, (0.3, 3.0)),
         neutral: vec![1.0; runs.len()],
+        start: None,
         refit_base: false,
         on_plant: &|x, r, p| p.law.k1_n *= x[r],
         sensor: None,
@@ -1793,6 +1838,47 @@ fn slope(pts: &[(f64, f64)]) -> f64 {
     }
 }
 
+/// The output's viscous damping off by `dc` (a rig constant misstated, or, the ropes'
+/// stiffness scaled alike, its inertia): the rig's `C + dc` in the plant, fitted with
+/// the baseline's free parameters from `C + dc0` (the small-signal estimate of
+/// [`second_mode`]), on the analytic response, then on the simulation.
+fn output_damping(b: &Base<'_, '_>, cmp: &Comparison, dc0: f64) -> Result<Term, IdentError> {
+    let c0 = rig_of(b, &b.params(0)?).map_or(0.05, |x| x.4).max(1e-4);
+    let term = SweepTerm {
+        specs: vec![ParamSpec {
+            name: "output_damping".into(),
+            unit: "N*m*s".into(),
+            initial: crate::fitting::strictly_inside(c0 + dc0, 1e-4 * c0, 1e3 * c0),
+            lower: 1e-4 * c0,
+            upper: 1e3 * c0,
+            log_scale: true,
+        }],
+        neutral: vec![c0],
+        start: Some(vec![c0 + dc0]),
+        refit_base: true,
+        on_plant: &|x, _, p| p.output_damping_n_m_s = Some(x[0]),
+        sensor: None,
+    };
+    let (c, ssr_after) = fit_sweep_term(b, cmp, &term)?;
+    let dc = c[0] - c0;
+    Ok(Term {
+        term: "the output's viscous damping off by dc".into(),
+        note: format!(
+            "C = {} against the rig's {}, the model's own values refitted with it",
+            quantity(c[0], "N*m*s"),
+            quantity(c0, "N*m*s")
+        ),
+        size: dc,
+        unit: "N*m*s",
+        equivalent: Some(Equivalent {
+            what: "or, the ropes' stiffness scaled alike, the output's inertia times C / (C + dc)",
+            value: c0 / c[0],
+            unit: "1",
+        }),
+        ssr_after,
+    })
+}
+
 /// Amplitude-dependent damping: an output damping per run, fitted with the baseline's
 /// free parameters (on the analytic response, then on the simulation); size: the dry
 /// torque `F` that the describing function gives, `C_r = C_v + 4 F / (pi V_r)` by least
@@ -1810,6 +1896,7 @@ fn amplitude_damping(b: &Base<'_, '_>, cmp: &Comparison) -> Result<Term, IdentEr
             (0.2 * c0, 50.0 * c0),
         ),
         neutral: vec![c0; prep.runs.len()],
+        start: None,
         refit_base: true,
         on_plant: &|x, r, p| p.output_damping_n_m_s = Some(x[r]),
         sensor: None,

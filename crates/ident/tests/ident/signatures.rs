@@ -387,3 +387,37 @@ fn a_second_mode_in_mujoco_data_is_quantified_as_a_load_behind_a_shaft() {
     assert!(s.share_removed > 0.2, "{s:?}");
     assert!(s.sentence().contains("a second mode"), "{}", s.sentence());
 }
+
+/// A rig constant misstated: the output's damping is 0.01 N*m*s where the dataset
+/// states 0.05 (the paper does not state C). No effect of the catalog lowers a damping
+/// and no other term explains as much: the signature says by how much.
+#[test]
+fn a_misstated_output_damping_is_quantified_as_a_damping() {
+    let mut truth = base();
+    truth.base.push(longreach_ident::model::ParamDef::base(
+        longreach_ident::model::BaseParam::OutputDamping,
+        0.01,
+        1e-4,
+        10.0,
+    ));
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("low_damping");
+    synth::sweep(&truth, &three_runs(31))
+        .unwrap()
+        .write(&path, "low damping")
+        .unwrap();
+    let mut ds = Dataset::load(&path).unwrap();
+    let DatasetKind::SineSweep(sw) = &mut ds.kind else {
+        panic!("not a sweep")
+    };
+    sw.rig.output_damping_n_m_s = 0.05;
+    let sigs = baseline_signatures(&ds, &base());
+    let s = find(&sigs, SignatureKind::OutputDamping);
+    assert_eq!(s.unit, "N*m*s");
+    assert!((s.size + 0.04).abs() < 0.004, "{s:?}");
+    assert!(s.share_removed > 0.5, "{s:?}");
+    assert!(
+        sigs.iter().all(|s| s.kind != SignatureKind::SecondMode),
+        "{sigs:#?}"
+    );
+}
