@@ -422,61 +422,59 @@ fn a_mujoco_sweep_names_a_stiffening_of_another_law_and_a_late_encoder() {
     );
 }
 
-/// An effect outside the catalog in data longreach did not make: MuJoCo's rig whose
-/// output is two inertias, the pulley and a load of 0.02 kg*m^2 behind a 40 N*m/rad
-/// shaft (modes at 2.96 and 14 Hz, the second above the sweep), the encoder on the
-/// pulley. The model misses the data far above the floor, and nothing is named: no
-/// effect of the catalog explains even a tenth of the excess.
-#[test]
-fn a_mujoco_sweep_with_a_second_mode_names_nothing() {
-    let ds = Dataset::load(example("example_mujoco_shaft")).unwrap();
+/// The diagnosis of MuJoCo's example `name`, whose output is two inertias (the pulley
+/// and a load behind a torsional shaft, the encoder on the pulley): it misses the data
+/// by more than `times` the floor, names nothing, and its residual's signature is a
+/// second mode, returned with the candidates.
+fn a_second_mode_and_no_name(
+    name: &str,
+    times: f64,
+) -> (longreach_ident::analysis::Signature, Vec<Candidate>) {
+    let ds = Dataset::load(example(name)).unwrap();
     let prep = Prepared::new(&ds).unwrap();
     let (d, base, winner) = diagnose(&prep, &Model::baseline(&ds).unwrap()).unwrap();
-    assert!(base.nrmse > 5.0 * base.noise_floor, "{}", base.nrmse);
+    assert!(base.nrmse > times * base.noise_floor, "{}", base.nrmse);
     assert_eq!(d.missing_effect, None, "{}", d.explanation);
     assert!(d.missing_effects.is_empty() && winner.is_none());
-    for c in &d.candidates {
-        assert!(
-            c.explained < 0.1 && !c.decisive,
-            "{} explains {:.3}: {}",
-            c.effect,
-            c.explained,
-            d.explanation
-        );
-    }
-    // What to add instead: the residual's signature is a second mode, the load's own
-    // mode with the pulley held at sqrt(40 / 0.02) / 2 pi = 7.12 Hz.
+    assert!(d
+        .explanation
+        .contains("what a second mode at the output leaves"));
     let mode = d
         .signatures
         .iter()
         .find(|s| s.kind == SignatureKind::SecondMode)
-        .unwrap_or_else(|| panic!("no second mode: {}", d.explanation));
+        .unwrap_or_else(|| panic!("no second mode: {}", d.explanation))
+        .clone();
+    (mode, d.candidates)
+}
+
+/// An effect outside the catalog in data longreach did not make: MuJoCo's rig whose
+/// output is the pulley and a load of 0.02 kg*m^2 behind a 40 N*m/rad shaft (modes at
+/// 2.96 and 14 Hz, the second above the sweep). Nothing is named: no effect of the
+/// catalog explains even a tenth of the excess. What to add instead: the residual's
+/// signature is a second mode, the load's own with the pulley held at
+/// sqrt(40 / 0.02) / 2 pi = 7.12 Hz.
+#[test]
+fn a_mujoco_sweep_with_a_second_mode_names_nothing() {
+    let (mode, candidates) = a_second_mode_and_no_name("example_mujoco_shaft", 5.0);
+    for c in &candidates {
+        assert!(
+            c.explained < 0.1 && !c.decisive,
+            "{} explains {:.3}",
+            c.effect,
+            c.explained
+        );
+    }
     assert!((mode.size / 7.12 - 1.0).abs() < 0.1, "{mode:?}");
-    assert!(d
-        .explanation
-        .contains("what a second mode at the output leaves"));
 }
 
 /// The same with the load's mode inside the sweep: 0.01 of the 0.0284 kg*m^2 behind a
 /// shaft of 8 N*m/rad and 0.005 N*m*s (the load's mode with the pulley held at
 /// sqrt(8 / 0.01) / 2 pi = 4.50 Hz, damping ratio 0.0088). Nothing is named, and the
-/// signature recovers the load: its frequency, its share of the inertia and its shaft.
+/// signature recovers the load: its frequency and its share of the inertia.
 #[test]
 fn a_mujoco_sweep_with_a_mode_inside_the_band_names_nothing_and_finds_the_load() {
-    let ds = Dataset::load(example("example_mujoco_mode")).unwrap();
-    let prep = Prepared::new(&ds).unwrap();
-    let (d, base, winner) = diagnose(&prep, &Model::baseline(&ds).unwrap()).unwrap();
-    assert!(base.nrmse > 10.0 * base.noise_floor, "{}", base.nrmse);
-    assert!(
-        d.missing_effects.is_empty() && winner.is_none(),
-        "{}",
-        d.explanation
-    );
-    let mode = d
-        .signatures
-        .iter()
-        .find(|s| s.kind == SignatureKind::SecondMode)
-        .unwrap_or_else(|| panic!("no second mode: {}", d.explanation));
+    let (mode, _) = a_second_mode_and_no_name("example_mujoco_mode", 10.0);
     // Measured: 4.649 Hz, J2 / I 0.325, k2 7.87 N*m/rad, 62% of the excess.
     let truth_hz = (8.0f64 / 0.01).sqrt() / std::f64::consts::TAU;
     assert!((mode.size / truth_hz - 1.0).abs() < 0.05, "{mode:?}");
