@@ -622,7 +622,8 @@ pub fn signatures(
         if let Ok(ShaftTerms {
             mode,
             determined,
-            damping,
+            damping_dc,
+            damping_after,
         }) = second_mode(b)
         {
             let best = out
@@ -631,7 +632,7 @@ pub fn signatures(
                 .filter(|s| s.is_finite())
                 .fold(0.0, f64::max);
             let (share, _) = b.shares(mode.ssr_after);
-            let (simple, _) = b.shares(damping.ssr_after);
+            let (simple, _) = b.shares(damping_after);
             if determined && share >= MODE_MIN_SHARE.max(best) && share - simple >= MODE_MARGIN {
                 out.push(b.signature(
                     SignatureKind::SecondMode,
@@ -639,7 +640,7 @@ pub fn signatures(
                     Ok(mode),
                 ));
             } else if simple >= 0.5 * MODE_MIN_SHARE {
-                if let Ok(t) = output_damping(b, cmp, damping.size) {
+                if let Ok(t) = output_damping(b, cmp, damping_dc) {
                     if b.shares(t.ssr_after).0 >= MODE_MIN_SHARE.max(best) {
                         out.push(b.signature(
                             SignatureKind::OutputDamping,
@@ -875,6 +876,12 @@ fn dry_friction(b: &Base<'_, '_>) -> Result<(Term, f64), IdentError> {
     }, corr))
 }
 
+/// The shaft's torque-to-angle response at `w` from the small-signal response `h`
+/// (eq. 9 with the ropes eliminated): `G = (1 - (r2/r1) H) / (-I w^2 + i C w)`.
+fn shaft_response(h: Complex64, r1: f64, r2: f64, inertia: f64, c: f64, w: f64) -> Complex64 {
+    (1.0 - (r2 / r1) * h) / Complex64::new(-inertia * w * w, c * w)
+}
+
 /// The output angle's response to a unit dry torque `-sign(w)` at the shaft over every
 /// analysis window of run `r` (the velocity's phase from the model's fundamental).
 fn friction_response(b: &Base<'_, '_>, r: usize) -> Result<Vec<Vec<f64>>, IdentError> {
@@ -900,8 +907,7 @@ fn friction_response(b: &Base<'_, '_>, r: usize) -> Result<Vec<Vec<f64>>, IdentE
                         .ok_or(IdentError::NotASweep {
                             kind: prep.ds.kind.name(),
                         })?;
-                let g = (1.0 - (r2 / r1) * h) / Complex64::new(-inertia * w * w, c * w);
-                harm.push((k as f64, g));
+                harm.push((k as f64, shaft_response(h, r1, r2, inertia, c, w)));
                 k += 2;
             }
             Ok((0..e - a)
@@ -926,7 +932,7 @@ const MODE_MIN_SHARE: f64 = 0.2;
 const MODE_MARGIN: f64 = 0.1;
 
 /// One test frequency's step as [`second_mode`] sees it.
-struct ModeStep {
+struct ShaftStep {
     /// Run.
     run: usize,
     /// Test frequency, Hz.
@@ -941,11 +947,11 @@ struct ModeStep {
     half_n: f64,
 }
 
-/// The least-squares problem of [`second_mode`]: the model's free values (`n_base`)
-/// then the load's `(phi, f2, zeta)`; per step, `sqrt(N/2) (R + Z)`.
-struct ModeProblem<'b, 'p, 'a> {
+/// The least-squares problem of a [`ShaftTerm`]: the model's free values (`n_base`)
+/// then the term's; per step, `sqrt(N/2) (R + Z)`.
+struct ShaftProblem<'b, 'p, 'a> {
     b: &'b Base<'p, 'a>,
-    steps: &'b [ModeStep],
+    steps: &'b [ShaftStep],
     n_base: usize,
     term: ShaftTerm,
 }
@@ -977,7 +983,7 @@ impl ShaftTerm {
     }
 }
 
-impl ModeProblem<'_, '_, '_> {
+impl ShaftProblem<'_, '_, '_> {
     /// Every step's `R + Z` (unscaled) at `v`.
     fn corrected(&self, v: &[f64]) -> Result<Vec<Complex64>, IdentError> {
         let prep = self.b.prep;
@@ -1006,7 +1012,7 @@ impl ModeProblem<'_, '_, '_> {
                     .plant
                     .small_signal_response(&params[s.run], s.run, s.f_hz)
                     .ok_or_else(not_sweep)?;
-                let g = (1.0 - (r2 / r1) * h) / Complex64::new(-inertia * w * w, c * w);
+                let g = shaft_response(h, r1, r2, inertia, c, w);
                 let dd = self.term.added(load, w, inertia);
                 Ok(s.r + (h / (1.0 + g * dd) - s.h0) * s.x)
             })
@@ -1025,7 +1031,7 @@ impl ModeProblem<'_, '_, '_> {
     }
 }
 
-impl Residuals for ModeProblem<'_, '_, '_> {
+impl Residuals for ShaftProblem<'_, '_, '_> {
     fn residuals(&self, v: &[f64], out: &mut Vec<f64>) -> Result<(), ResidualError> {
         out.clear();
         for (d, s) in self.corrected(v)?.iter().zip(self.steps) {
@@ -1065,7 +1071,7 @@ fn second_mode(b: &Base<'_, '_>) -> Result<ShaftTerms, IdentError> {
     let DatasetKind::SineSweep(sw) = &prep.ds.kind else {
         return Err(not_sweep());
     };
-    let mut steps: Vec<ModeStep> = Vec::new();
+    let mut steps: Vec<ShaftStep> = Vec::new();
     let (mut inertia, mut damping) = (0.0, 0.0);
     let (mut f_lo, mut f_hi) = (f64::INFINITY, 0.0f64);
     for (r, run) in prep.runs.iter().enumerate() {
@@ -1075,7 +1081,7 @@ fn second_mode(b: &Base<'_, '_>) -> Result<ShaftTerms, IdentError> {
         let y = &b.sims[r];
         for &(f, a, e) in &run.segments {
             let res: Vec<f64> = (a..e).map(|i| y[i] - run.measured[i]).collect();
-            steps.push(ModeStep {
+            steps.push(ShaftStep {
                 run: r,
                 f_hz: f,
                 x: dft(&input[a..e], run.dt_s, f),
@@ -1125,7 +1131,6 @@ fn second_mode(b: &Base<'_, '_>) -> Result<ShaftTerms, IdentError> {
         ],
         &starts,
     )?;
-    // The simpler terms a mode must beat: the output's inertia or damping off.
     // The simpler term a mode must beat: the output's damping off. (Its inertia off is
     // the same term: the ropes' stiffness refitted with it, only C / I is left.)
     let (dc_ssr, dc) = fit_shaft_term(
@@ -1161,22 +1166,8 @@ fn second_mode(b: &Base<'_, '_>) -> Result<ShaftTerms, IdentError> {
             }),
             ssr_after: after(mode_ssr),
         },
-        damping: Term {
-            term: "the output's viscous damping off by dc".into(),
-            note: format!(
-                "{} against the rig's {}, the model's own values refitted with it; an estimate from each test frequency's fundamental through the rig's small-signal dynamics",
-                if dc < 0.0 { "less damping" } else { "more damping" },
-                quantity(damping, "N*m*s")
-            ),
-            size: dc,
-            unit: "N*m*s",
-            equivalent: Some(Equivalent {
-                what: "or, the ropes' stiffness scaled alike, the output's inertia times C / (C + dc)",
-                value: damping / (damping + dc),
-                unit: "1",
-            }),
-            ssr_after: after(dc_ssr),
-        },
+        damping_dc: dc,
+        damping_after: after(dc_ssr),
     })
 }
 
@@ -1188,8 +1179,11 @@ struct ShaftTerms {
     /// inertia off its bounds): a mode above the sweep shows only its tail, an inertia
     /// growing with the frequency, which other failures leave as well.
     determined: bool,
-    /// The output's damping off, on the small-signal picture.
-    damping: Term,
+    /// The output's damping off on the small-signal picture, `dc` (N*m*s): the start
+    /// of [`output_damping`].
+    damping_dc: f64,
+    /// The SSR after it there.
+    damping_after: f64,
 }
 
 /// The shaft term `term` (its parameters `term_specs`) fitted with the model's free
@@ -1198,14 +1192,14 @@ struct ShaftTerms {
 /// the term's values.
 fn fit_shaft_term(
     b: &Base<'_, '_>,
-    steps: &[ModeStep],
+    steps: &[ShaftStep],
     term: ShaftTerm,
     term_specs: &[ParamSpec],
     starts: &[Vec<f64>],
 ) -> Result<(f64, Vec<f64>), IdentError> {
     let mut specs = b.model.fit_specs(b.prep.runs.len());
     let n_base = specs.len();
-    let problem = ModeProblem {
+    let problem = ShaftProblem {
         b,
         steps,
         n_base,
