@@ -1,11 +1,11 @@
 //! Diagnosis: the baseline and every applicable registered effect fitted and ranked by
 //! BIC, the decision rule (the constants below) and the verdict in words.
 
-use longreach_drive::effects::{DataKind, Site, REGISTRY};
+use longreach_drive::effects::{DataKind, REGISTRY};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::fit::fit_simulated;
+use super::fit::{fit_simulated, on_relay_rig, RELAY_SCREEN_JACOBIANS};
 use super::{
     arm_dataset, compare, compare_arm, describe, describe_findings, fit_model, fit_model_from,
     fit_model_from_starts, refine_shape, scan_coordinates, screen_model, searched_starts,
@@ -656,16 +656,6 @@ fn lead_on(prep: &Prepared<'_>, stage: Staged<'_, '_>, base_ssr: f64) -> Leading
 /// first screen in it.
 fn screen_order(a: &(f64, usize), b: &(f64, usize)) -> std::cmp::Ordering {
     a.0.total_cmp(&b.0).then(a.1.cmp(&b.1))
-}
-
-/// Whether `model` is simulated on the relay rig (an effect at the relay pulleys or on
-/// the spans splits each rope into spans): its simulations cost several times the
-/// plain rig's.
-fn on_relay_rig(model: &Model) -> bool {
-    model
-        .effects
-        .iter()
-        .any(|u| matches!(u.effect.site(), Site::RelayPulley | Site::Span))
 }
 
 /// Share of the baseline's excess squared error above the floor that the baseline,
@@ -1936,6 +1926,10 @@ pub fn diagnose_with(
         .zip(&stopped)
         .filter_map(|(e, &stop)| stop.then_some(e.name()))
         .collect();
+    let stopped_relay_rig = models
+        .iter()
+        .zip(&stopped)
+        .any(|(m, &stop)| stop && on_relay_rig(m));
     let excess = (base.ssr - ssr_floor).max(0.0);
     let judge = Judge {
         base_ssr: base.ssr,
@@ -1982,8 +1976,14 @@ pub fn diagnose_with(
         } else {
             String::new()
         };
+        // (a sweep's relay-rig candidates are screened on fewer steps: `screen_jacobians`)
+        let relay_steps = if prep.kind == DataKind::SineSweep && stopped_relay_rig {
+            format!(" ({RELAY_SCREEN_JACOBIANS} on the relay rig)")
+        } else {
+            String::new()
+        };
         notes.push(format!(
-            "Only screened, not fitted on (their starting grid and {SCREEN_JACOBIANS} steps of their first start's least squares left them above {SCREEN_RATIO}x {against}{idle_reason}): {}. ",
+            "Only screened, not fitted on (their starting grid and {SCREEN_JACOBIANS} steps{relay_steps} of their first start's least squares left them above {SCREEN_RATIO}x {against}{idle_reason}): {}. ",
             stopped_names.join(", ")
         ));
     }

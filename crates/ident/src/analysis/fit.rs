@@ -2,7 +2,7 @@
 //! sweeps scored and refined on the analytic frequency response), least squares on the
 //! time-domain simulation, and the screening of a model at its starting values alone.
 
-use longreach_drive::effects::{Argument, DataKind};
+use longreach_drive::effects::{Argument, DataKind, Site};
 use num_complex::Complex64;
 use rayon::prelude::*;
 
@@ -1144,6 +1144,39 @@ fn or_own(
 /// Jacobians of a candidate's first start in the first stage of a [`Staged`] fit.
 pub const SCREEN_JACOBIANS: usize = 3;
 
+/// [`SCREEN_JACOBIANS`] of a sweep's candidate simulated on the relay rig
+/// ([`on_relay_rig`]), whose simulations cost 20-25 times the plain rig's (a relay
+/// rig's run of a 5-run sweep ~70 ms, the plain rig's 3 ms, 12 ms with a non-linear
+/// rope). On the 5-run stiffening sweep (README) the relay screen's second and third
+/// Jacobians were 40 of its 75 simulations of a run, 2.5 of the diagnosis' 17.4 s of
+/// CPU, for a candidate left ~400 times the squared error its screen is stopped at
+/// (`diagnose` 9.8-10.3 s wall against 8.8-9.2 s since, alternated). Where the
+/// relays' friction is in the data its screen leads after one Jacobian: on the 5-run
+/// relay-friction sweep NRMSE 0.209 (0.044 after three), the next screen 1.007; the
+/// leader's whole fit then retraces that path through the same simulations.
+pub const RELAY_SCREEN_JACOBIANS: usize = 1;
+
+/// Whether `model` is simulated on the relay rig (an effect at the relay pulleys or on
+/// the spans splits each rope into spans): its simulations cost several times the
+/// plain rig's.
+pub(crate) fn on_relay_rig(model: &Model) -> bool {
+    model
+        .effects
+        .iter()
+        .any(|u| matches!(u.effect.site(), Site::RelayPulley | Site::Span))
+}
+
+/// The Jacobians of `model`'s screen on `prep` ([`Staged::screen`]):
+/// [`RELAY_SCREEN_JACOBIANS`] for a sweep's candidate on the relay rig,
+/// [`SCREEN_JACOBIANS`] otherwise.
+pub fn screen_jacobians(prep: &Prepared<'_>, model: &Model) -> usize {
+    if prep.kind == DataKind::SineSweep && on_relay_rig(model) {
+        RELAY_SCREEN_JACOBIANS
+    } else {
+        SCREEN_JACOBIANS
+    }
+}
+
 /// A model's fit ([`fit_model`]) in two stages that share its simulations, for a
 /// diagnosis that fits many candidates and keeps few ([`super::diagnose`] on arms):
 /// [`Self::screen`], the search of starting values and the first start's least squares
@@ -1173,7 +1206,7 @@ impl<'p, 'a> Staged<'p, 'a> {
     }
 
     /// The first stage: the model at the values its first start reaches after
-    /// [`SCREEN_JACOBIANS`] Jacobians (or at that start when its least squares fails),
+    /// [`screen_jacobians`] Jacobians (or at that start when its least squares fails),
     /// with `fit = None` (no intervals: a screen, not a fit).
     pub fn screen(&mut self) -> Result<Fitted, IdentError> {
         self.screen_reporting(&|_| {})
@@ -1203,7 +1236,7 @@ impl<'p, 'a> Staged<'p, 'a> {
         if !specs.is_empty() {
             // the least squares of `fit_once`'s first start, stopped early: the same path
             let opts = FitOptions {
-                max_evaluations: SCREEN_JACOBIANS * (specs.len() + 2),
+                max_evaluations: screen_jacobians(prep, model) * (specs.len() + 2),
                 intervals: false,
                 ..fit_options(prep, model, specs.len())
             };

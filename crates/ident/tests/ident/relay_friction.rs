@@ -13,10 +13,11 @@ use longreach_ident::Dataset;
 const COEFFICIENT: f64 = 0.003;
 const INERTIA_KG_M2: f64 = 2e-5;
 
-#[test]
-fn diagnose_names_relay_friction_and_recovers_the_coefficient() {
+/// A 3-run sweep of dyneema2 with `relay_friction` hidden (`COEFFICIENT`,
+/// `INERTIA_KG_M2`), written by `synth` with its tension channels into `dir`, and the
+/// baseline model it is diagnosed with.
+fn relay_sweep(dir: &std::path::Path) -> (Dataset, Model) {
     let e = effects::find("relay_friction").expect("relay_friction is registered");
-    assert!(e.doc().len() > 100);
     // Two amplitudes at one tension and a third run at another tension: dry friction
     // shows as amplitude dependence.
     let mut opt = SweepOptions::paper("dyneema2", 7);
@@ -28,8 +29,7 @@ fn diagnose_names_relay_friction_and_recovers_the_coefficient() {
     opt.frequencies_hz = vec![0.5, 1.0, 1.5, 1.8, 2.1, 2.4, 2.7, 3.0, 3.5, 4.5];
     opt.settle_s = 2.0;
     opt.min_hold_s = 2.0;
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("relay");
+    let path = dir.join("relay");
     let ds0 = Dataset::load(
         // Any sweep dataset gives the baseline its rope and rig; synth writes the data.
         std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -45,7 +45,15 @@ fn diagnose_names_relay_friction_and_recovers_the_coefficient() {
         .unwrap()
         .write(&path, "relay friction hidden")
         .unwrap();
-    let ds = Dataset::load(&path).unwrap();
+    (Dataset::load(&path).unwrap(), base)
+}
+
+#[test]
+fn diagnose_names_relay_friction_and_recovers_the_coefficient() {
+    let e = effects::find("relay_friction").expect("relay_friction is registered");
+    assert!(e.doc().len() > 100);
+    let dir = tempfile::tempdir().unwrap();
+    let (ds, base) = relay_sweep(dir.path());
     let prep = Prepared::new(&ds).unwrap();
     assert!(prep.runs.iter().all(|r| r.channels.len() == 4));
     let (d, base_fit, _) = diagnose(&prep, &base).unwrap();
@@ -83,4 +91,36 @@ fn diagnose_names_relay_friction_and_recovers_the_coefficient() {
     assert!(d
         .nrmse_after
         .is_some_and(|n| n < 1.05 * base_fit.noise_floor));
+}
+
+/// A sweep's candidate on the relay rig is screened on `RELAY_SCREEN_JACOBIANS` (one)
+/// Jacobian of its least squares, the others on `SCREEN_JACOBIANS` (three); after the
+/// shorter screen the relay candidate's whole fit is still `fit_model`'s to the bit (the
+/// second stage retraces the screen's path through the same simulations), and the
+/// screen lies between the start and the whole fit.
+#[test]
+fn a_relay_screen_takes_one_jacobian_and_its_fit_is_the_whole_fit() {
+    use longreach_ident::analysis::{
+        fit_model, screen_jacobians, Staged, RELAY_SCREEN_JACOBIANS, SCREEN_JACOBIANS,
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let (ds, base) = relay_sweep(dir.path());
+    let prep = Prepared::new(&ds).unwrap();
+    let m = base.with_effect(effects::find("relay_friction").unwrap());
+    let stiff = base.with_effect(effects::find("nonlinear_stiffness").unwrap());
+    assert_eq!(screen_jacobians(&prep, &m), RELAY_SCREEN_JACOBIANS);
+    assert_eq!(screen_jacobians(&prep, &stiff), SCREEN_JACOBIANS);
+    let whole = fit_model(&prep, &m).unwrap();
+    let mut staged = Staged::new(&prep, &m);
+    let screen = staged.screen().unwrap();
+    let start_ssr = prep.ssr(&prep.simulate(&m).unwrap());
+    assert!(
+        whole.ssr <= screen.ssr && screen.ssr < start_ssr,
+        "whole {:e} <= screen {:e} < start {start_ssr:e}",
+        whole.ssr,
+        screen.ssr
+    );
+    let again = staged.fit().unwrap();
+    assert_eq!(again.ssr.to_bits(), whole.ssr.to_bits());
+    assert_eq!(again.model.named_values(), whole.model.named_values());
 }
