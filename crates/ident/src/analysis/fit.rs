@@ -1150,10 +1150,12 @@ pub const SCREEN_JACOBIANS: usize = 3;
 /// rope). On the 5-run stiffening sweep (README) the relay screen's second and third
 /// Jacobians were 40 of its 75 simulations of a run, 2.5 of the diagnosis' 17.4 s of
 /// CPU, for a candidate left ~400 times the squared error its screen is stopped at
-/// (`diagnose` 9.8-10.3 s wall against 8.8-9.2 s since, alternated). Where the
-/// relays' friction is in the data its screen leads after one Jacobian: on the 5-run
-/// relay-friction sweep NRMSE 0.209 (0.044 after three), the next screen 1.007; the
-/// leader's whole fit then retraces that path through the same simulations.
+/// (`diagnose` 10.3-11.1 s wall before, 9.3-9.5 s since, alternated in a slow hour).
+/// Where the relays' friction is in the data its screen leads after one Jacobian: on
+/// the 5-run relay-friction sweep NRMSE 0.209 (0.044 after three), the next screen
+/// 1.007; the leader's whole fit then retraces that path through the same
+/// simulations. Arms keep [`SCREEN_JACOBIANS`] (their relay candidate not studied
+/// with fewer).
 pub const RELAY_SCREEN_JACOBIANS: usize = 1;
 
 /// Whether `model` is simulated on the relay rig (an effect at the relay pulleys or on
