@@ -1303,25 +1303,11 @@ fn arm_findings_say_what_the_arm_shows() {
 /// reused. Data: one move of j5 with joint friction hidden, the candidate joint friction.
 #[test]
 fn a_staged_fit_screens_then_gives_the_whole_fit_to_the_bit() {
-    use longreach_ident::analysis::{fit_model, Prepared, Staged};
+    use longreach_ident::analysis::Prepared;
     let dir = tempfile::tempdir().unwrap();
     let ds = j5_move(dir.path(), Some(PER_JOINT_TRUTH));
     let base = Model::baseline(&ds).unwrap();
     let prep = Prepared::new(&ds).unwrap();
     let m = base.with_effect(longreach_drive::effects::find("joint_friction").unwrap());
-    let whole = fit_model(&prep, &m).unwrap();
-    let mut staged = Staged::new(&prep, &m);
-    let screen = staged.screen().unwrap();
-    assert!(screen.fit.is_none(), "a screen has no intervals");
-    let start_ssr = prep.ssr(&prep.simulate(&m).unwrap());
-    assert!(
-        whole.ssr <= screen.ssr && screen.ssr < start_ssr,
-        "whole {:e} <= screen {:e} < start {start_ssr:e}",
-        whole.ssr,
-        screen.ssr
-    );
-    let again = staged.fit().unwrap();
-    assert_eq!(again.ssr.to_bits(), whole.ssr.to_bits());
-    assert_eq!(again.model.named_values(), whole.model.named_values());
-    assert_eq!(again.sims, whole.sims);
+    crate::check_staged_fit(&prep, &m);
 }

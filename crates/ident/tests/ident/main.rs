@@ -18,3 +18,28 @@ mod sensors;
 mod shapes;
 mod signatures;
 mod tensions;
+
+/// The two stages of `m`'s fit on `prep` against its whole fit: the screen lies between
+/// the start and the whole fit, and the second stage after it is `fit_model`'s fit to
+/// the bit (it retraces the screen's path through the same simulations).
+fn check_staged_fit(
+    prep: &longreach_ident::analysis::Prepared<'_>,
+    m: &longreach_ident::model::Model,
+) {
+    use longreach_ident::analysis::{fit_model, Staged};
+    let whole = fit_model(prep, m).unwrap();
+    let mut staged = Staged::new(prep, m);
+    let screen = staged.screen().unwrap();
+    assert!(screen.fit.is_none(), "a screen has no intervals");
+    let start_ssr = prep.ssr(&prep.simulate(m).unwrap());
+    assert!(
+        whole.ssr <= screen.ssr && screen.ssr < start_ssr,
+        "whole {:e} <= screen {:e} < start {start_ssr:e}",
+        whole.ssr,
+        screen.ssr
+    );
+    let again = staged.fit().unwrap();
+    assert_eq!(again.ssr.to_bits(), whole.ssr.to_bits());
+    assert_eq!(again.model.named_values(), whole.model.named_values());
+    assert_eq!(again.sims, whole.sims);
+}

@@ -100,9 +100,7 @@ fn diagnose_names_relay_friction_and_recovers_the_coefficient() {
 /// screen lies between the start and the whole fit.
 #[test]
 fn a_relay_screen_takes_one_jacobian_and_its_fit_is_the_whole_fit() {
-    use longreach_ident::analysis::{
-        fit_model, screen_jacobians, Staged, RELAY_SCREEN_JACOBIANS, SCREEN_JACOBIANS,
-    };
+    use longreach_ident::analysis::{screen_jacobians, RELAY_SCREEN_JACOBIANS, SCREEN_JACOBIANS};
     let dir = tempfile::tempdir().unwrap();
     let (ds, base) = relay_sweep(dir.path());
     let prep = Prepared::new(&ds).unwrap();
@@ -110,17 +108,5 @@ fn a_relay_screen_takes_one_jacobian_and_its_fit_is_the_whole_fit() {
     let stiff = base.with_effect(effects::find("nonlinear_stiffness").unwrap());
     assert_eq!(screen_jacobians(&prep, &m), RELAY_SCREEN_JACOBIANS);
     assert_eq!(screen_jacobians(&prep, &stiff), SCREEN_JACOBIANS);
-    let whole = fit_model(&prep, &m).unwrap();
-    let mut staged = Staged::new(&prep, &m);
-    let screen = staged.screen().unwrap();
-    let start_ssr = prep.ssr(&prep.simulate(&m).unwrap());
-    assert!(
-        whole.ssr <= screen.ssr && screen.ssr < start_ssr,
-        "whole {:e} <= screen {:e} < start {start_ssr:e}",
-        whole.ssr,
-        screen.ssr
-    );
-    let again = staged.fit().unwrap();
-    assert_eq!(again.ssr.to_bits(), whole.ssr.to_bits());
-    assert_eq!(again.model.named_values(), whole.model.named_values());
+    crate::check_staged_fit(&prep, &m);
 }
