@@ -5,7 +5,7 @@ use longreach_drive::effects::{DataKind, REGISTRY};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::fit::{fit_simulated, on_relay_rig, RELAY_SCREEN_JACOBIANS};
+use super::fit::{fit_simulated, on_relay_rig, screen_jacobians};
 use super::{
     arm_dataset, compare, compare_arm, describe, describe_findings, fit_model, fit_model_from,
     fit_model_from_starts, refine_shape, scan_coordinates, screen_model, searched_starts,
@@ -1926,10 +1926,15 @@ pub fn diagnose_with(
         .zip(&stopped)
         .filter_map(|(e, &stop)| stop.then_some(e.name()))
         .collect();
-    let stopped_relay_rig = models
+    // (the fewest steps a stopped candidate's screen took, where fewer than most:
+    // `screen_jacobians`)
+    let fewer_steps = models
         .iter()
         .zip(&stopped)
-        .any(|(m, &stop)| stop && on_relay_rig(m));
+        .filter(|&(_, &stop)| stop)
+        .map(|(m, _)| screen_jacobians(search, m))
+        .filter(|&k| k < SCREEN_JACOBIANS)
+        .min();
     let excess = (base.ssr - ssr_floor).max(0.0);
     let judge = Judge {
         base_ssr: base.ssr,
@@ -1976,12 +1981,9 @@ pub fn diagnose_with(
         } else {
             String::new()
         };
-        // (a sweep's relay-rig candidates are screened on fewer steps: `screen_jacobians`)
-        let relay_steps = if prep.kind == DataKind::SineSweep && stopped_relay_rig {
-            format!(" ({RELAY_SCREEN_JACOBIANS} on the relay rig)")
-        } else {
-            String::new()
-        };
+        let relay_steps = fewer_steps
+            .map(|k| format!(" ({k} on the relay rig)"))
+            .unwrap_or_default();
         notes.push(format!(
             "Only screened, not fitted on (their starting grid and {SCREEN_JACOBIANS} steps{relay_steps} of their first start's least squares left them above {SCREEN_RATIO}x {against}{idle_reason}): {}. ",
             stopped_names.join(", ")
