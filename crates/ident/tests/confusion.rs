@@ -14,6 +14,9 @@
 //! The small version (relaxation, control + extra_retardation) runs by default in
 //! `crates/ident/tests/ident/diagnose_loop.rs`.
 //!
+//! `CONFUSION_KEEP=DIR` keeps a copy of each dataset of the extended study in
+//! `DIR/<rope>_<seed>` (for `longreach diagnose` on one of them).
+//!
 //! Tension channels: every sweep dataset is written with `synth`'s four tension
 //! channels and diagnosed twice, with them (they enter the fits and the scores, each
 //! over its noise) and with them left out (the output angle alone, as before they
@@ -441,6 +444,14 @@ fn diagnose_truth(
                 .unwrap()
                 .write(&path, "case")
                 .unwrap();
+        }
+    }
+    if let Ok(keep) = std::env::var("CONFUSION_KEEP") {
+        let to = std::path::Path::new(&keep).join(format!("{rope}_{seed}"));
+        std::fs::create_dir_all(&to).unwrap();
+        for f in std::fs::read_dir(&path).unwrap() {
+            let f = f.unwrap();
+            std::fs::copy(f.path(), to.join(f.file_name())).unwrap();
         }
     }
     let ds = Dataset::load(&path).unwrap();

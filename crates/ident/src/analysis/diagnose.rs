@@ -8,9 +8,10 @@ use serde::Serialize;
 use super::fit::{fit_simulated, on_relay_rig, screen_jacobians};
 use super::{
     arm_dataset, compare, compare_arm, describe, describe_findings, fit_model, fit_model_from,
-    fit_model_from_starts, refine_shape, scan_coordinates, screen_model, searched_starts,
-    signatures, simulate_arm, split_per_joint, ArmFinding, Comparison, Fitted, JointSplit,
-    Prepared, RunResonance, ShapeRefinement, Signature, Staged, Start, Where, SCREEN_JACOBIANS,
+    fit_model_from_starts, refine_shape, scan_added, scan_coordinates, screen_model, screen_own,
+    searched_starts, signatures, simulate_arm, split_per_joint, ArmFinding, Comparison, Fitted,
+    JointSplit, Prepared, RunResonance, ShapeRefinement, Signature, Staged, Start, Where,
+    SCREEN_JACOBIANS,
 };
 use crate::error::IdentError;
 use crate::model::Model;
@@ -1371,7 +1372,7 @@ fn pair_step(
     let mut combos = Vec::new();
     for i in 0..tops.len() {
         for j in i + 1..tops.len() {
-            combos.push((i, j));
+            combos.push((i, j, None));
         }
     }
     // The best single's partner among the others, screened: a second effect that the
@@ -1379,8 +1380,12 @@ fn pair_step(
     // (relay friction with a stiffening rope on the rig: the stiffening ranked fourth
     // alone, and the pairs of the first three left 2.4x the floor). Each other
     // candidate's effect is added to the best single's fit at its own fitted values and
-    // simulated once; the one that brings the best single closest to the data, if it
-    // brings it closer at all, is paired with it too.
+    // simulated once; except on arms (whose simulations are dear) it is also placed
+    // beside the best single from its defaults ([`scan_added`]: alone its fit made up
+    // for the first effect's absence, the stiffening's left at 0 beside relay friction),
+    // and the closer of the two is screened as a pair ([`screen_own`], every value free).
+    // The one that brings the best single closest to the data, if it brings it closer
+    // at all, is paired with it too, its screened pair a start of the pair's fit.
     if let Some(&first) = tops.first() {
         let others: Vec<&Fitted> = cands
             .iter()
@@ -1391,20 +1396,30 @@ fn pair_step(
             // (the exhaustive step: every other candidate is the best single's partner)
             for o in others {
                 tops.push(o);
-                combos.push((0, tops.len() - 1));
+                combos.push((0, tops.len() - 1, None));
             }
         } else {
-            let screened: Vec<f64> = others
+            let scan = prep.kind != DataKind::ArmMoves;
+            let screened: Vec<(f64, Option<Model>)> = others
                 .par_iter()
                 .map(|o| {
                     let Some(eo) = o.model.effects.last() else {
-                        return f64::INFINITY;
+                        return (f64::INFINITY, None);
                     };
                     let mut m = first.model.clone();
                     m.effects.push(eo.clone());
-                    search
+                    let at_own = search
                         .simulate(&m)
-                        .map_or(f64::INFINITY, |sims| search.ssr(&sims))
+                        .map_or(f64::INFINITY, |sims| search.ssr(&sims));
+                    if !scan {
+                        return (at_own, None);
+                    }
+                    let fresh = first.model.with_effect(eo.effect);
+                    let placed = match scan_added(search, &fresh, fresh.effects.len() - 1) {
+                        Ok((placed, ssr)) if ssr < at_own => placed,
+                        _ => m,
+                    };
+                    screen_own(search, &placed).map_or((at_own, None), |(s, ssr)| (ssr, Some(s)))
                 })
                 .collect();
             // (the single's own SSR is `prep`'s: simulated again only on a coarse twin)
@@ -1415,11 +1430,11 @@ fn pair_step(
                     .map_or(f64::INFINITY, |sims| c.ssr(&sims)),
             };
             if let Some(k) = (0..others.len())
-                .filter(|&k| screened[k] < first_ssr)
-                .min_by(|&a, &b| screened[a].total_cmp(&screened[b]).then(a.cmp(&b)))
+                .filter(|&k| screened[k].0 < first_ssr)
+                .min_by(|&a, &b| screened[a].0.total_cmp(&screened[b].0).then(a.cmp(&b)))
             {
                 tops.push(others[k]);
-                combos.push((0, tops.len() - 1));
+                combos.push((0, tops.len() - 1, screened[k].1.clone()));
             }
             // And on sweeps the best-ranked of the others, when the screen chose
             // another: a partner whose single fit made up for the first effect's
@@ -1431,15 +1446,15 @@ fn pair_step(
             if let Some(&o) = others.first().filter(|_| sweep) {
                 if !tops.iter().any(|t| std::ptr::eq(*t, o)) {
                     tops.push(o);
-                    combos.push((0, tops.len() - 1));
+                    combos.push((0, tops.len() - 1, None));
                 }
             }
         }
     }
     let fits: Vec<(String, Result<Fitted, IdentError>)> = combos
         .par_iter()
-        .map(|&(i, j)| {
-            let (a, b) = (tops[i], tops[j]);
+        .map(|(i, j, placed)| {
+            let (a, b) = (tops[*i], tops[*j]);
             let (Some(ea), Some(eb)) = (a.model.effects.last(), b.model.effects.last()) else {
                 return (String::new(), Err(IdentError::NoStartFitted { starts: 0 }));
             };
@@ -1456,6 +1471,7 @@ fn pair_step(
             let k = ba.effects.len() - 1;
             ba.effects.insert(k, ea.clone());
             let mut starts = vec![ab, ba];
+            starts.extend(placed.clone());
             // (a sweep's search is a grid on the analytic response, cheap; a specimen's
             // simulates its grid, also cheap (a relaxation in milliseconds), and finds
             // basins the singles' values miss: a ratchet with a stiffening rope reached

@@ -456,6 +456,132 @@ pub fn scan_coordinates(prep: &Prepared<'_>, model: &Model) -> Result<Model, Ide
     Ok(model.with_values(&x, n_runs))
 }
 
+/// Factor on either side of the current `k1_scale` at which [`scan_added`] weighs
+/// each value of an added effect's parameter (then at the parabola's vertex through
+/// the three, in log `k1_scale`, within [`K1_REPLACE_SPAN`] of the current).
+const K1_REPLACE_STEP: f64 = 1.25;
+
+/// Largest factor by which [`scan_added`] moves `k1_scale` from the first fit's.
+const K1_REPLACE_SPAN: f64 = 2.0;
+
+/// `model` with the effect `added` (an index into its effects) placed on the
+/// simulation while the other effects hold their values: each of that effect's free
+/// parameters in turn scanned along an axis of [`HIDDEN_SCAN_POINTS`] ([`grid_axis`])
+/// from the current point, the best point kept each time; returned with its squared
+/// error. Each value is weighed with `k1_scale` placed again (an effect that stiffens
+/// or softens the rope moves the `k1_scale` the others were fitted with): at the
+/// current one and [`K1_REPLACE_STEP`] on either side, then at the vertex of the
+/// parabola through those three in log `k1_scale`. For a second effect that the
+/// first's error masks: alone its fit makes up for the first's absence, and beside an
+/// effect at the relay pulleys (which the analytic response does not see) its
+/// starting grid has no minimum away from zero (a stiffening rope beside relay
+/// friction, the extended study's pairs).
+pub fn scan_added(
+    prep: &Prepared<'_>,
+    model: &Model,
+    added: usize,
+) -> Result<(Model, f64), IdentError> {
+    let n_runs = prep.runs.len();
+    let mut held = model.clone();
+    for (e, u) in held.effects.iter_mut().enumerate() {
+        if e != added {
+            for p in &mut u.params {
+                p.fit = false;
+            }
+        }
+    }
+    let specs = held.fit_specs(n_runs);
+    let slots = held.free_slots(n_runs);
+    let cache = SimCache::new(prep, &held);
+    let mut x: Vec<f64> = specs.iter().map(|s| s.initial).collect();
+    let mut best = cache.ssr(&x);
+    let k1 = (0..specs.len()).find(|&i| is_k1_scale(&held, &slots[i]));
+    let own = (0..specs.len()).filter(|&i| slots[i].owner == Owner::Effect(added));
+    for i in own {
+        let values = grid_axis(&specs[i], HIDDEN_SCAN_POINTS);
+        let at = |v: f64, w: Option<f64>| {
+            let mut y = x.clone();
+            y[i] = v;
+            if let (Some(j), Some(w)) = (k1, w) {
+                y[j] = w.clamp(specs[j].lower, specs[j].upper);
+            }
+            y
+        };
+        let k0 = k1.map(|j| x[j]);
+        let factors = [1.0 / K1_REPLACE_STEP, 1.0, K1_REPLACE_STEP];
+        let mut line: Vec<Vec<f64>> = values
+            .iter()
+            .flat_map(|&v| match k0 {
+                Some(w) => factors.iter().map(|f| at(v, Some(w * f))).collect(),
+                None => vec![at(v, None)],
+            })
+            .collect();
+        let mut costs: Vec<f64> = line.par_iter().map(|y| cache.ssr(y)).collect();
+        if let Some(w) = k0 {
+            // the vertex in u = log_step(k1 / k1_0), from the costs at u = -1, 0, 1
+            let vertices: Vec<Vec<f64>> = values
+                .iter()
+                .enumerate()
+                .filter_map(|(n, &v)| {
+                    let c = &costs[3 * n..3 * n + 3];
+                    let curv = c[0] - 2.0 * c[1] + c[2];
+                    if curv.is_nan() || curv <= 0.0 {
+                        return None;
+                    }
+                    let span = K1_REPLACE_SPAN.ln() / K1_REPLACE_STEP.ln();
+                    let u = (0.5 * (c[0] - c[2]) / curv).clamp(-span, span);
+                    Some(at(v, Some(w * K1_REPLACE_STEP.powf(u))))
+                })
+                .collect();
+            costs.extend(
+                vertices
+                    .par_iter()
+                    .map(|y| cache.ssr(y))
+                    .collect::<Vec<_>>(),
+            );
+            line.extend(vertices);
+        }
+        let k = (0..line.len()).min_by(|&a, &b| costs[a].total_cmp(&costs[b]).then(a.cmp(&b)));
+        if let Some(k) = k.filter(|&k| costs[k] < best) {
+            best = costs[k];
+            x = line.swap_remove(k);
+        }
+    }
+    // (the held effects free again, at their values)
+    let mut out = held.with_values(&x, n_runs);
+    for (u, v) in out.effects.iter_mut().zip(&model.effects) {
+        for (p, q) in u.params.iter_mut().zip(&v.params) {
+            p.fit = q.fit;
+        }
+    }
+    Ok((out, best))
+}
+
+/// `model` screened from its own values: the first [`SCREEN_JACOBIANS`] Jacobians of
+/// its least squares, and the squared error reached (at its values when the least
+/// squares fails). Three on the relay rig too: there one Jacobian moved no pair of
+/// relay friction with a second effect from its start (the extended study's pairs with
+/// a stiffening rope), three took the stiffening ahead of the others.
+pub fn screen_own(prep: &Prepared<'_>, model: &Model) -> Result<(Model, f64), IdentError> {
+    let n_runs = prep.runs.len();
+    let cache = SimCache::new(prep, model);
+    let x0: Vec<f64> = model.fit_specs(n_runs).iter().map(|s| s.initial).collect();
+    let specs = fit_specs(prep, model);
+    let mut values = x0;
+    if !specs.is_empty() {
+        let opts = FitOptions {
+            max_evaluations: SCREEN_JACOBIANS * (specs.len() + 2),
+            intervals: false,
+            ..fit_options(prep, model, specs.len())
+        };
+        if let Ok(Some(r)) = fit_joining(&Problem { cache: &cache }, &specs, &opts, &[]) {
+            values = r.values;
+        }
+    }
+    let ssr = cache.ssr(&values);
+    Ok((model.with_values(&values, n_runs), ssr))
+}
+
 /// `x` with coordinate `i` set to the value of `axis` that simulates closest to the
 /// data (parallel simulations; ties: the first), and that cost.
 fn best_on_axis(

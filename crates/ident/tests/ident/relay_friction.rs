@@ -110,3 +110,71 @@ fn a_relay_screen_takes_one_jacobian_and_its_fit_is_the_whole_fit() {
     assert_eq!(screen_jacobians(&prep, &stiff), SCREEN_JACOBIANS);
     crate::check_staged_fit(&prep, &m);
 }
+
+/// A stiffening rope beside relay friction (the extended study's pair, 3 runs): relay
+/// friction's fit makes up for the stiffening, and the stiffening's single fit, made
+/// without the relay friction, leaves its coefficient near 0. Placed beside relay
+/// friction's fit from its defaults (`scan_added`) and screened as a pair
+/// (`screen_own`), the stiffening brings the data closer than internal damping placed
+/// and screened the same way (the partner the pair step chose before, 2.4x the floor),
+/// and closer than relay friction alone; its coefficient lands within 2x the hidden one.
+#[test]
+fn a_stiffening_masked_by_relay_friction_is_placed_beside_it_and_screened_ahead() {
+    use longreach_ident::analysis::{fit_model, scan_added, screen_own};
+    const STIFFENING_PER_N: f64 = 2e-3;
+    let relay = effects::find("relay_friction").unwrap();
+    let stiffening = effects::find("nonlinear_stiffness").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let ds0 = Dataset::load(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../data/examples/example_sweep_control"),
+    )
+    .unwrap();
+    let mut base = Model::baseline(&ds0).unwrap();
+    base.base = vec![ParamDef::base(BaseParam::K1Scale, 1.0, 0.2, 5.0)];
+    let mut truth = base.with_effect(relay).with_effect(stiffening);
+    truth.effects[0].params[0].value = 0.01;
+    truth.effects[0].params[1].value = 5e-5;
+    truth.effects[1].params[0].value = STIFFENING_PER_N;
+    let mut opt = SweepOptions::paper("dyneema2", 4000);
+    opt.runs = [98.0, 196.0, 343.0]
+        .iter()
+        .map(|&t| (t, 3f64.to_radians()))
+        .collect();
+    opt.frequencies_hz = vec![0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.5];
+    opt.settle_s = 2.0;
+    opt.min_hold_s = 2.0;
+    let path = dir.path().join("pair");
+    synth::sweep(&truth, &opt)
+        .unwrap()
+        .write(&path, "relay friction and a stiffening rope hidden")
+        .unwrap();
+    let ds = Dataset::load(&path).unwrap();
+    let prep = Prepared::new(&ds).unwrap();
+    let first = fit_model(&prep, &base.with_effect(relay)).unwrap();
+    let screen = |name: &str| {
+        let fresh = first.model.with_effect(effects::find(name).unwrap());
+        let (placed, _) = scan_added(&prep, &fresh, 1).unwrap();
+        // the scan moves the added effect and k1_scale only
+        for (p, q) in placed.effects[0]
+            .params
+            .iter()
+            .zip(&first.model.effects[0].params)
+        {
+            assert_eq!((p.value.to_bits(), p.fit), (q.value.to_bits(), q.fit));
+        }
+        screen_own(&prep, &placed).unwrap()
+    };
+    let (stiff, stiff_ssr) = screen("nonlinear_stiffness");
+    let (_, damp_ssr) = screen("internal_damping");
+    eprintln!(
+        "relay alone {:.4e}, with the stiffening {stiff_ssr:.4e}, with damping {damp_ssr:.4e}; stiffening {:.3e}",
+        first.ssr, stiff.effects[1].params[0].value
+    );
+    assert!(stiff_ssr < damp_ssr && stiff_ssr < first.ssr);
+    let s = stiff.effects[1].params[0].value;
+    assert!(
+        (0.5..2.0).contains(&(s / STIFFENING_PER_N)),
+        "stiffening {s} vs hidden {STIFFENING_PER_N}"
+    );
+}
