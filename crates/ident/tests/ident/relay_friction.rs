@@ -5,7 +5,7 @@
 
 use longreach_drive::effects;
 use longreach_ident::analysis::{diagnose, Prepared};
-use longreach_ident::model::{BaseParam, Model, ParamDef};
+use longreach_ident::model::Model;
 use longreach_ident::synth::{self, SweepOptions};
 use longreach_ident::Dataset;
 
@@ -30,14 +30,8 @@ fn relay_sweep(dir: &std::path::Path) -> (Dataset, Model) {
     opt.settle_s = 2.0;
     opt.min_hold_s = 2.0;
     let path = dir.join("relay");
-    let ds0 = Dataset::load(
-        // Any sweep dataset gives the baseline its rope and rig; synth writes the data.
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../data/examples/example_sweep_control"),
-    )
-    .unwrap();
-    let mut base = Model::baseline(&ds0).unwrap();
-    base.base = vec![ParamDef::base(BaseParam::K1Scale, 1.0, 0.2, 5.0)];
+    // (the example sweep gives the baseline its rope and rig; synth writes the data)
+    let base = crate::new_effects::base();
     let mut truth = base.with_effect(e);
     truth.effects[0].params[0].value = COEFFICIENT;
     truth.effects[0].params[1].value = INERTIA_KG_M2;
@@ -125,13 +119,7 @@ fn a_stiffening_masked_by_relay_friction_is_placed_beside_it_and_screened_ahead(
     let relay = effects::find("relay_friction").unwrap();
     let stiffening = effects::find("nonlinear_stiffness").unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let ds0 = Dataset::load(
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../data/examples/example_sweep_control"),
-    )
-    .unwrap();
-    let mut base = Model::baseline(&ds0).unwrap();
-    base.base = vec![ParamDef::base(BaseParam::K1Scale, 1.0, 0.2, 5.0)];
+    let base = crate::new_effects::base();
     let mut truth = base.with_effect(relay).with_effect(stiffening);
     truth.effects[0].params[0].value = 0.01;
     truth.effects[0].params[1].value = 5e-5;
