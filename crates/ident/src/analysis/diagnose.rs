@@ -1415,11 +1415,10 @@ fn pair_step(
                         return (at_own, None);
                     }
                     let fresh = first.model.with_effect(eo.effect);
-                    let placed = match scan_added(search, &fresh, fresh.effects.len() - 1) {
-                        Ok((placed, ssr)) if ssr < at_own => placed,
-                        _ => m,
-                    };
-                    screen_own(search, &placed).map_or((at_own, None), |(s, ssr)| (ssr, Some(s)))
+                    let (placed, placed_ssr) = scan_added(search, &fresh, fresh.effects.len() - 1);
+                    let (screened, ssr) =
+                        screen_own(search, if placed_ssr < at_own { &placed } else { &m });
+                    (ssr, Some(screened))
                 })
                 .collect();
             // (the single's own SSR is `prep`'s: simulated again only on a coarse twin)

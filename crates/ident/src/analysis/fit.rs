@@ -476,11 +476,7 @@ const K1_REPLACE_SPAN: f64 = 2.0;
 /// effect at the relay pulleys (which the analytic response does not see) its
 /// starting grid has no minimum away from zero (a stiffening rope beside relay
 /// friction, the extended study's pairs).
-pub fn scan_added(
-    prep: &Prepared<'_>,
-    model: &Model,
-    added: usize,
-) -> Result<(Model, f64), IdentError> {
+pub fn scan_added(prep: &Prepared<'_>, model: &Model, added: usize) -> (Model, f64) {
     let n_runs = prep.runs.len();
     let mut held = model.clone();
     for (e, u) in held.effects.iter_mut().enumerate() {
@@ -541,8 +537,7 @@ pub fn scan_added(
             );
             line.extend(vertices);
         }
-        let k = (0..line.len()).min_by(|&a, &b| costs[a].total_cmp(&costs[b]).then(a.cmp(&b)));
-        if let Some(k) = k.filter(|&k| costs[k] < best) {
+        if let Some(k) = argmin(&costs).filter(|&k| costs[k] < best) {
             best = costs[k];
             x = line.swap_remove(k);
         }
@@ -554,7 +549,7 @@ pub fn scan_added(
             p.fit = q.fit;
         }
     }
-    Ok((out, best))
+    (out, best)
 }
 
 /// `model` screened from its own values: the first [`SCREEN_JACOBIANS`] Jacobians of
@@ -562,24 +557,37 @@ pub fn scan_added(
 /// squares fails). Three on the relay rig too: there one Jacobian moved no pair of
 /// relay friction with a second effect from its start (the extended study's pairs with
 /// a stiffening rope), three took the stiffening ahead of the others.
-pub fn screen_own(prep: &Prepared<'_>, model: &Model) -> Result<(Model, f64), IdentError> {
+pub fn screen_own(prep: &Prepared<'_>, model: &Model) -> (Model, f64) {
     let n_runs = prep.runs.len();
     let cache = SimCache::new(prep, model);
     let x0: Vec<f64> = model.fit_specs(n_runs).iter().map(|s| s.initial).collect();
-    let specs = fit_specs(prep, model);
-    let mut values = x0;
-    if !specs.is_empty() {
-        let opts = FitOptions {
-            max_evaluations: SCREEN_JACOBIANS * (specs.len() + 2),
-            intervals: false,
-            ..fit_options(prep, model, specs.len())
-        };
-        if let Ok(Some(r)) = fit_joining(&Problem { cache: &cache }, &specs, &opts, &[]) {
-            values = r.values;
-        }
-    }
+    let values = screened_values(&cache, x0, SCREEN_JACOBIANS);
     let ssr = cache.ssr(&values);
-    Ok((model.with_values(&values, n_runs), ssr))
+    (model.with_values(&values, n_runs), ssr)
+}
+
+/// The values the least squares of `cache`'s model reaches from `x0` in `jacobians`
+/// Jacobians (a screen: no intervals), or `x0` when it fails.
+fn screened_values(cache: &SimCache<'_, '_>, x0: Vec<f64>, jacobians: usize) -> Vec<f64> {
+    let (prep, model) = (cache.prep, cache.model);
+    let specs = fit_specs(prep, &model.with_values(&x0, prep.runs.len()));
+    if specs.is_empty() {
+        return x0;
+    }
+    let opts = FitOptions {
+        max_evaluations: jacobians * (specs.len() + 2),
+        intervals: false,
+        ..fit_options(prep, model, specs.len())
+    };
+    match fit_joining(&Problem { cache }, &specs, &opts, &[]) {
+        Ok(Some(r)) => r.values,
+        _ => x0,
+    }
+}
+
+/// The index of the least of `costs` (ties: the first); `None` when empty.
+fn argmin(costs: &[f64]) -> Option<usize> {
+    (0..costs.len()).min_by(|&a, &b| costs[a].total_cmp(&costs[b]).then(a.cmp(&b)))
 }
 
 /// `x` with coordinate `i` set to the value of `axis` that simulates closest to the
@@ -609,7 +617,7 @@ fn best_on_axis_by(
         })
         .collect();
     let costs: Vec<f64> = line.par_iter().map(|y| cost(y)).collect();
-    let k = (0..line.len()).min_by(|&a, &b| costs[a].total_cmp(&costs[b]).then(a.cmp(&b)))?;
+    let k = argmin(&costs)?;
     Some((costs[k], line.swap_remove(k)))
 }
 
@@ -1359,20 +1367,8 @@ impl<'p, 'a> Staged<'p, 'a> {
         }
         // (the second stage chooses among them as `fit_once` does)
         self.starts = Some(searched);
-        let specs = fit_specs(prep, &model.with_values(&x0, n_runs));
-        let mut values = x0;
-        if !specs.is_empty() {
-            // the least squares of `fit_once`'s first start, stopped early: the same path
-            let opts = FitOptions {
-                max_evaluations: screen_jacobians(prep, model) * (specs.len() + 2),
-                intervals: false,
-                ..fit_options(prep, model, specs.len())
-            };
-            let problem = Problem { cache: &self.cache };
-            if let Ok(Some(r)) = fit_joining(&problem, &specs, &opts, &[]) {
-                values = r.values;
-            }
-        }
+        // the least squares of `fit_once`'s first start, stopped early: the same path
+        let values = screened_values(&self.cache, x0, screen_jacobians(prep, model));
         let sims = self.cache.simulate(&values)?.to_vec();
         let (nrmse, _) = prep.overall(&sims);
         Ok(Fitted {
