@@ -8,7 +8,7 @@ use serde::Serialize;
 use super::fit::{fit_simulated, on_relay_rig, screen_jacobians};
 use super::{
     arm_dataset, compare, compare_arm, describe, describe_findings, fit_model, fit_model_from,
-    fit_model_from_starts, refine_shape, scan_added, scan_coordinates, screen_model, screen_own,
+    fit_model_from_starts, refine_shape, scan_coordinates, screen_added, screen_model,
     searched_starts, signatures, simulate_arm, split_per_joint, ArmFinding, Comparison, Fitted,
     JointSplit, Prepared, RunResonance, ShapeRefinement, Signature, Staged, Start, Where,
     SCREEN_JACOBIANS,
@@ -1383,7 +1383,10 @@ fn pair_step(
     // simulated once; except on arms (whose simulations are dear) it is also placed
     // beside the best single from its defaults ([`scan_added`]: alone its fit made up
     // for the first effect's absence, the stiffening's left at 0 beside relay friction),
-    // and the closer of the two is screened as a pair ([`screen_own`], every value free).
+    // and the closer of the two is screened as a pair, every value free, as is the
+    // best point of each other value of the placing's axes ([`screen_added`]: without
+    // tension channels the stiffening's valley beside relay friction's held values
+    // lies above the relay alone).
     // The one that brings the best single closest to the data, if it brings it closer
     // at all, is paired with it too, its screened pair a start of the pair's fit.
     if let Some(&first) = tops.first() {
@@ -1415,9 +1418,7 @@ fn pair_step(
                         return (at_own, None);
                     }
                     let fresh = first.model.with_effect(eo.effect);
-                    let (placed, placed_ssr) = scan_added(search, &fresh, fresh.effects.len() - 1);
-                    let (screened, ssr) =
-                        screen_own(search, if placed_ssr < at_own { &placed } else { &m });
+                    let (screened, ssr) = screen_added(search, &m, at_own, &fresh);
                     (ssr, Some(screened))
                 })
                 .collect();

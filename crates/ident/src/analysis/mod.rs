@@ -54,8 +54,8 @@ pub use diagnose::{
 };
 pub use fit::{
     fit_model, fit_model_deferred, fit_model_from, fit_model_from_starts, scan_added,
-    scan_coordinates, screen_jacobians, screen_model, screen_own, searched_starts, with_intervals,
-    Fitted, Staged, Start, ARM_EVALUATIONS_PER_PARAM, DEAR_EVALUATIONS_PER_PARAM,
+    scan_coordinates, screen_added, screen_jacobians, screen_model, screen_own, searched_starts,
+    with_intervals, Fitted, Staged, Start, ARM_EVALUATIONS_PER_PARAM, DEAR_EVALUATIONS_PER_PARAM,
     RELAY_SCREEN_JACOBIANS, SCREEN_JACOBIANS,
 };
 pub use joints::{moved_joints, split_per_joint, splittable, JointSplit, JointValues};

@@ -105,22 +105,15 @@ fn a_relay_screen_takes_one_jacobian_and_its_fit_is_the_whole_fit() {
     crate::check_staged_fit(&prep, &m);
 }
 
-/// A stiffening rope beside relay friction (the extended study's pair, 3 runs): relay
-/// friction's fit makes up for the stiffening, and the stiffening's single fit, made
-/// without the relay friction, leaves its coefficient near 0. Placed beside relay
-/// friction's fit from its defaults (`scan_added`) and screened as a pair
-/// (`screen_own`), the stiffening brings the data closer than internal damping placed
-/// and screened the same way (the partner the pair step chose before, 2.4x the floor),
-/// and closer than relay friction alone; its coefficient lands within 2x the hidden one.
-#[test]
-fn a_stiffening_masked_by_relay_friction_is_placed_beside_it_and_screened_ahead() {
-    use longreach_ident::analysis::{fit_model, scan_added, screen_own};
-    const STIFFENING_PER_N: f64 = 2e-3;
+/// The 3-run sweep of relay friction (0.01, 5e-5) with a stiffening rope (2e-3) on
+/// dyneema2, with or without its tension channels, loaded; and relay friction's fit.
+fn relay_with_stiffening(tension_channels: bool) -> (tempfile::TempDir, Dataset) {
     let relay = effects::find("relay_friction").unwrap();
     let stiffening = effects::find("nonlinear_stiffness").unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let base = crate::new_effects::base();
-    let mut truth = base.with_effect(relay).with_effect(stiffening);
+    let mut truth = crate::new_effects::base()
+        .with_effect(relay)
+        .with_effect(stiffening);
     truth.effects[0].params[0].value = 0.01;
     truth.effects[0].params[1].value = 5e-5;
     truth.effects[1].params[0].value = STIFFENING_PER_N;
@@ -132,17 +125,37 @@ fn a_stiffening_masked_by_relay_friction_is_placed_beside_it_and_screened_ahead(
     opt.frequencies_hz = vec![0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.5];
     opt.settle_s = 2.0;
     opt.min_hold_s = 2.0;
+    opt.tension_channels = tension_channels;
     let path = dir.path().join("pair");
     synth::sweep(&truth, &opt)
         .unwrap()
         .write(&path, "relay friction and a stiffening rope hidden")
         .unwrap();
     let ds = Dataset::load(&path).unwrap();
+    (dir, ds)
+}
+
+/// The stiffening hidden beside relay friction in [`relay_with_stiffening`].
+const STIFFENING_PER_N: f64 = 2e-3;
+
+/// A stiffening rope beside relay friction (the extended study's pair, 3 runs): relay
+/// friction's fit makes up for the stiffening, and the stiffening's single fit, made
+/// without the relay friction, leaves its coefficient near 0. Placed beside relay
+/// friction's fit from its defaults (`scan_added`) and screened as a pair
+/// (`screen_own`), the stiffening brings the data closer than internal damping placed
+/// and screened the same way (the partner the pair step chose before, 2.4x the floor),
+/// and closer than relay friction alone; its coefficient lands within 2x the hidden one.
+#[test]
+fn a_stiffening_masked_by_relay_friction_is_placed_beside_it_and_screened_ahead() {
+    use longreach_ident::analysis::{fit_model, scan_added, screen_own};
+    let relay = effects::find("relay_friction").unwrap();
+    let base = crate::new_effects::base();
+    let (_dir, ds) = relay_with_stiffening(true);
     let prep = Prepared::new(&ds).unwrap();
     let first = fit_model(&prep, &base.with_effect(relay)).unwrap();
     let screen = |name: &str| {
         let fresh = first.model.with_effect(effects::find(name).unwrap());
-        let (placed, _) = scan_added(&prep, &fresh, 1);
+        let (placed, _, _) = scan_added(&prep, &fresh, 1);
         // the scan moves the added effect and k1_scale only
         for (p, q) in placed.effects[0]
             .params
@@ -165,4 +178,48 @@ fn a_stiffening_masked_by_relay_friction_is_placed_beside_it_and_screened_ahead(
         (0.5..2.0).contains(&(s / STIFFENING_PER_N)),
         "stiffening {s} vs hidden {STIFFENING_PER_N}"
     );
+}
+
+/// The same pair without its tension channels: there relay friction's fit, held, bends
+/// the valley the stiffening lies in, and the placing's closest point keeps the
+/// stiffening near 0 (its screen barely below relay friction alone). Screened from
+/// every value of its axis as well (`screen_added`), the pair comes back to the hidden
+/// values within 5%, ten times closer to the data than relay friction alone, and ahead
+/// of internal damping placed and screened the same way.
+#[test]
+fn without_tension_channels_the_stiffening_is_screened_from_each_value_of_its_axis() {
+    use longreach_ident::analysis::{fit_model, scan_added, screen_added, screen_own};
+    let relay = effects::find("relay_friction").unwrap();
+    let (_dir, ds) = relay_with_stiffening(false);
+    let prep = Prepared::new(&ds).unwrap();
+    let first = fit_model(&prep, &crate::new_effects::base().with_effect(relay)).unwrap();
+    let added = |name: &str| {
+        let fresh = first.model.with_effect(effects::find(name).unwrap());
+        // (the effect's own single fit stands in at its lower bound: the stiffening's
+        // ends near 0 beside relay friction)
+        let mut own = fresh.clone();
+        own.effects[1].params[0].value = own.effects[1].params[0].lower;
+        let own_ssr = prep.ssr(&prep.simulate(&own).unwrap());
+        (fresh, own, own_ssr)
+    };
+    let (fresh, own, own_ssr) = added("nonlinear_stiffness");
+    let (placed, _, others) = scan_added(&prep, &fresh, 1);
+    let (_, placed_screened) = screen_own(&prep, &placed);
+    let (stiff, stiff_ssr) = screen_added(&prep, &own, own_ssr, &fresh);
+    let (fresh_d, own_d, own_d_ssr) = added("internal_damping");
+    let (_, damp_ssr) = screen_added(&prep, &own_d, own_d_ssr, &fresh_d);
+    eprintln!(
+        "relay alone {:.4e}; placed {:.3e} screened {placed_screened:.4e}; from {} axis points {stiff_ssr:.4e}: {:?}; damping {damp_ssr:.4e}",
+        first.ssr, placed.effects[1].params[0].value, others.len(), stiff.named_values()
+    );
+    // (the case this test is for: the placing's own point does not find the pair)
+    assert!(
+        placed_screened > 0.5 * first.ssr,
+        "the placing found the pair by itself ({placed_screened:e}): this data no longer tests the axis' starts"
+    );
+    assert!(stiff_ssr < 0.1 * first.ssr && stiff_ssr < damp_ssr);
+    let s = stiff.effects[1].params[0].value;
+    let c = stiff.effects[0].params[0].value;
+    assert!((s / STIFFENING_PER_N - 1.0).abs() < 0.05, "stiffening {s}");
+    assert!((c / 0.01 - 1.0).abs() < 0.05, "relay coefficient {c}");
 }
