@@ -780,9 +780,13 @@ impl RopeStepper {
     /// iteration costs one exponential and no logarithm. It stops once the tension's
     /// error after the update, bounded by the second-order term `kt k1 max|g'| dz^2`
     /// (the Taylor remainder of `T`, and the distance of `z + dz` from the root), is
-    /// below `1e-14 (1 + f)`. Returns the tension and d(tension)/d(strain).
+    /// below `1e-14 (1 + f)`. Returns the tension and d(tension)/d(strain); NaN for a
+    /// strain that is not a number (as [`Self::solve_nonlinear`]: the step reports it).
     #[inline]
     fn solve_head_piece(&self, c: f64, u: f64, guess: f64) -> (f64, f64) {
+        if u.is_nan() {
+            return (f64::NAN, 0.0);
+        }
         let (mut lo, mut hi) = (0.0_f64, u);
         let mut z = (u - c * guess.max(0.0)).clamp(0.0, u);
         for _ in 0..200 {
@@ -963,6 +967,32 @@ mod tests {
     /// the solvers' tolerance (1e-12), slopes within 1e-6 (the general Newton returns its
     /// last iterate's slope, one converged step from the root; a Jacobian entry of the
     /// implicit step, whose error there only changes how its iterations converge).
+
+    /// A strain that is not a number gives a tension that is not a number, on the
+    /// head-spring solve as on the general one, for the step to report: no panic (a
+    /// relay whose angle went NaN once panicked in the head solve's clamp).
+    #[test]
+    fn a_strain_that_is_not_a_number_gives_nan_not_a_panic() {
+        let head = RopeLaw {
+            stiffening_per_n: 2e-3,
+            ..RopeLaw::flory(7.29e4, 1.65e7, 8.9e5, 1.47e6, 3e4)
+        };
+        let damped = RopeLaw {
+            c1_n_s: 300.0,
+            ..head.clone()
+        };
+        for (law, head_only) in [(head, true), (damped, false)] {
+            let st = RopeStepper::new(law, 1e-3).unwrap();
+            assert_eq!(st.head_only, head_only);
+            let s = st.rest_state(150.0, 0.0);
+            let p = st.prepare(&s);
+            let (f, _) = st.tension(&p, f64::NAN);
+            assert!(f.is_nan(), "head_only {head_only}: {f}");
+            // and the same stepper still answers a real strain
+            let (f, k) = st.tension(&p, s.strain);
+            assert!((f / 150.0 - 1.0).abs() < 0.02 && k > 0.0, "{f} {k}");
+        }
+    }
     #[test]
     fn closed_form_head_solve_matches_the_general_newton() {
         let table = |x: &[f64], y: &[f64]| Some(Table::new(x, y).unwrap());

@@ -121,7 +121,9 @@ pub(crate) fn solve_crossed_relays(
             for _ in 0..60 {
                 let psi = sc.psi1[k];
                 let (g, dg) = eval(sc);
-                if g == 0.0 {
+                // (a residual that is not a number is left to the global iteration,
+                // which reports it; a NaN step would make the angle NaN)
+                if g == 0.0 || !(g.is_finite() && dg.is_finite()) {
                     break;
                 }
                 if g > 0.0 {
