@@ -961,13 +961,6 @@ impl RopeStepper {
 mod tests {
     use super::*;
 
-    /// The closed-form head solve ([`RopeStepper::solve_head`]) against the general
-    /// safeguarded Newton on the step residual, step by step along strain histories
-    /// that go slack, load past the ratchet's yield and swing fast: tensions equal within
-    /// the solvers' tolerance (1e-12), slopes within 1e-6 (the general Newton returns its
-    /// last iterate's slope, one converged step from the root; a Jacobian entry of the
-    /// implicit step, whose error there only changes how its iterations converge).
-
     /// A strain that is not a number gives a tension that is not a number, on the
     /// head-spring solve as on the general one, for the step to report: no panic (a
     /// relay whose angle went NaN once panicked in the head solve's clamp).
@@ -993,6 +986,13 @@ mod tests {
             assert!((f / 150.0 - 1.0).abs() < 0.02 && k > 0.0, "{f} {k}");
         }
     }
+
+    /// The closed-form head solve ([`RopeStepper::solve_head`]) against the general
+    /// safeguarded Newton on the step residual, step by step along strain histories
+    /// that go slack, load past the ratchet's yield and swing fast: tensions equal within
+    /// the solvers' tolerance (1e-12), slopes within 1e-6 (the general Newton returns its
+    /// last iterate's slope, one converged step from the root; a Jacobian entry of the
+    /// implicit step, whose error there only changes how its iterations converge).
     #[test]
     fn closed_form_head_solve_matches_the_general_newton() {
         let table = |x: &[f64], y: &[f64]| Some(Table::new(x, y).unwrap());
