@@ -541,7 +541,8 @@ pub fn scan_added(prep: &Prepared<'_>, model: &Model, added: usize) -> (Model, f
             );
             line.extend(vertices);
         }
-        // (the best point of each axis value, the closest of them kept if it is closer)
+        // (the best point of each axis value: a start of `screen_added`; below, the
+        // closest of all points moves the placing if it beats the current one)
         let per_value: Vec<usize> = (0..values.len())
             .filter_map(|n| {
                 let of_n: Vec<usize> = (0..line.len()).filter(|&k| line[k].0 == n).collect();
