@@ -585,7 +585,7 @@ pub fn scan_added(prep: &Prepared<'_>, model: &Model, added: usize) -> (Model, f
 /// screened as a pair: [`scan_added`] places it from its defaults (`fresh`: the same
 /// model with the effect at its defaults); the closer of that point and `own` is
 /// screened ([`screen_own`], every value free), and so is the best point of every
-/// other value of the placing's axes. Returns the screened model that comes closest
+/// other value of the placing's axes (on [`AXIS_SCREEN_JACOBIANS`]). Returns the screened model that comes closest
 /// to the data and its squared error. Every axis value is a start because the held
 /// values of the first effect, fitted without the second, bend the valley the second
 /// lies in: on a relay-friction sweep of dyneema2 without tension channels the placing
