@@ -585,8 +585,8 @@ pub fn scan_added(prep: &Prepared<'_>, model: &Model, added: usize) -> (Model, f
 /// screened as a pair: [`scan_added`] places it from its defaults (`fresh`: the same
 /// model with the effect at its defaults); the closer of that point and `own` is
 /// screened ([`screen_own`], every value free), and so is the best point of every
-/// other value of the placing's axes (on [`AXIS_SCREEN_JACOBIANS`]). Returns the screened model that comes closest
-/// to the data and its squared error. Every axis value is a start because the held
+/// other value of the placing's axes (on [`AXIS_SCREEN_JACOBIANS`]). Returns the
+/// screened model that comes closest to the data and its squared error. Every axis value is a start because the held
 /// values of the first effect, fitted without the second, bend the valley the second
 /// lies in: on a relay-friction sweep of dyneema2 without tension channels the placing
 /// kept a stiffening of 2.6e-5 (SSR 0.790, the relay alone 0.808; hidden 2e-3), while
@@ -599,7 +599,7 @@ pub fn screen_added(prep: &Prepared<'_>, own: &Model, own_ssr: f64, fresh: &Mode
         own.clone()
     }];
     starts.extend(others);
-    let screened: Vec<(Model, f64)> = starts
+    let mut screened: Vec<(Model, f64)> = starts
         .par_iter()
         .enumerate()
         .map(|(k, m)| {
@@ -615,11 +615,8 @@ pub fn screen_added(prep: &Prepared<'_>, own: &Model, own_ssr: f64, fresh: &Mode
         })
         .collect();
     let costs: Vec<f64> = screened.iter().map(|(_, c)| *c).collect();
-    let k = argmin(&costs).unwrap_or(0);
-    screened
-        .into_iter()
-        .nth(k)
-        .map_or((own.clone(), own_ssr), |s| s)
+    // (never empty: the placing's own point is the first start)
+    screened.swap_remove(argmin(&costs).unwrap_or(0))
 }
 
 /// `model` screened from its own values: the first [`SCREEN_JACOBIANS`] Jacobians of

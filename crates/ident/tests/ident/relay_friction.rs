@@ -106,7 +106,8 @@ fn a_relay_screen_takes_one_jacobian_and_its_fit_is_the_whole_fit() {
 }
 
 /// The 3-run sweep of relay friction (0.01, 5e-5) with a stiffening rope (2e-3) on
-/// dyneema2, with or without its tension channels, loaded; and relay friction's fit.
+/// dyneema2, with or without its tension channels, written to a temporary folder
+/// (returned to keep it) and loaded.
 fn relay_with_stiffening(tension_channels: bool) -> (tempfile::TempDir, Dataset) {
     let relay = effects::find("relay_friction").unwrap();
     let stiffening = effects::find("nonlinear_stiffness").unwrap();
