@@ -110,7 +110,7 @@ fn figures_table(c: &ArmComparison) -> Table {
 
 /// The simulation step of an arm dataset, chosen from the data with `model`
 /// ([`analysis::choose_arm_step`]), printed with every halving tried.
-pub fn choose_step(ds: &Dataset, model: &Model) -> Result<analysis::ArmStep> {
+pub fn choose_step(ds: &Dataset, model: &Model) -> Result<analysis::SimulationStep> {
     let prep = analysis::Prepared::new(ds).map_err(|e| anyhow!("{e}"))?;
     let s = analysis::choose_arm_step(&prep, model).map_err(|e| anyhow!("{e}"))?;
     println!("{}", step_words(&s));
@@ -118,7 +118,7 @@ pub fn choose_step(ds: &Dataset, model: &Model) -> Result<analysis::ArmStep> {
 }
 
 /// One line on the chosen step: its size and why.
-pub fn step_words(s: &analysis::ArmStep) -> String {
+pub fn step_words(s: &analysis::SimulationStep) -> String {
     let tried = s
         .trials
         .iter()
@@ -138,12 +138,12 @@ pub fn step_words(s: &analysis::ArmStep) -> String {
         if s.converged {
             format!(
                 "the coarsest whose halving moves the channels by <= {} sigma of their noise",
-                analysis::ARM_STEP_TOLERANCE_SIGMA
+                analysis::STEP_TOLERANCE_SIGMA
             )
         } else {
             format!(
                 "the finest tried: halving it still moves the channels by more than {} sigma",
-                analysis::ARM_STEP_TOLERANCE_SIGMA
+                analysis::STEP_TOLERANCE_SIGMA
             )
         },
         if s.converged {

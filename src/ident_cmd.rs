@@ -304,16 +304,43 @@ fn fit_rows(r: &longreach_ident::FitResult) -> Vec<[String; 5]> {
 }
 
 /// The prepared dataset; an arm's at the simulation step chosen from the data with
-/// `model` (printed).
+/// `model` (printed); a sweep's at its coarsest step, which [`refined_for`] refines
+/// where the model needs it.
 fn prepare<'a>(
     ds: &'a longreach_ident::Dataset,
     model: &Model,
-) -> Result<(Prepared<'a>, Option<analysis::ArmStep>)> {
+) -> Result<(Prepared<'a>, Option<analysis::SimulationStep>)> {
     let (prep, step) = analysis::prepared_at_step(ds, model).map_err(message)?;
     if let Some(s) = &step {
         println!("{}", crate::arm_ident_cmd::step_words(s));
     }
     Ok((prep, step))
+}
+
+/// A sweep prepared again at the step `model` needs where its step error shows
+/// against what it leaves over the floor (`ratio_to_floor`, its NRMSE over the floor at
+/// `prep`'s step; `analysis::needed_sweep_step`), printed; `None` where it needs none.
+fn refined_for<'a>(
+    prep: &Prepared<'a>,
+    model: &Model,
+    ratio_to_floor: f64,
+) -> Result<Option<Prepared<'a>>> {
+    let need = analysis::needed_sweep_step(prep, model, ratio_to_floor, prep.refinement())
+        .map_err(message)?;
+    let Some(need) = need else {
+        return Ok(None);
+    };
+    println!(
+        "{}; at {:.4} ms the model ({:.2}x the floor) moved by {:.2} sigma when the step was halved, a step error of about {:.0}% of its squared error over the floor",
+        crate::arm_ident_cmd::step_words(&need.step),
+        1e3 * need.from_step_s,
+        ratio_to_floor,
+        need.change_sigma,
+        100.0 * need.share.min(1.0)
+    );
+    Ok(Some(
+        prep.at_refinement(need.step.refinement).map_err(message)?,
+    ))
 }
 
 /// Runs `fit`.
@@ -323,8 +350,16 @@ pub fn run_fit(a: &FitArgs) -> Result<ExitCode> {
     }
     let (ds, model) = load(&a.data)?;
     check_write_scenario(a.write_scenario.as_deref(), &ds)?;
-    let (prep, _) = prepare(&ds, &model)?;
-    let f = analysis::fit_model(&prep, &model).map_err(message)?;
+    let (mut prep, _) = prepare(&ds, &model)?;
+    let mut f = analysis::fit_model(&prep, &model).map_err(message)?;
+    if let Some(fine) = refined_for(&prep, &f.model, f.nrmse / f.noise_floor)? {
+        // fitted on at the finer step from the values reached (the NRMSE before the fit
+        // stays the first step's)
+        let before = f.nrmse_before;
+        f = analysis::fit_model_from(&fine, &f.model, analysis::Start::Own).map_err(message)?;
+        f.nrmse_before = before;
+        prep = fine;
+    }
     let mut numbers = vec![
         ("NRMSE before".to_string(), f.nrmse_before),
         ("NRMSE".to_string(), f.nrmse),
@@ -546,9 +581,14 @@ pub fn run_compare(a: &CompareArgs) -> Result<ExitCode> {
         &format!("compare {}", a.data.dataset.display()),
         &rerun_args::default_rrd(None, &a.data.dataset, "_compare"),
     )?;
-    let prep = Prepared::new(&ds).map_err(message)?;
-    let sims = prep.simulate(&model).map_err(message)?;
-    let c = analysis::compare(&prep, &model, &sims).map_err(message)?;
+    let (mut prep, _) = prepare(&ds, &model)?;
+    let mut sims = prep.simulate(&model).map_err(message)?;
+    let mut c = analysis::compare(&prep, &model, &sims).map_err(message)?;
+    if let Some(fine) = refined_for(&prep, &model, c.nrmse / c.noise_floor_nrmse)? {
+        prep = fine;
+        sims = prep.simulate(&model).map_err(message)?;
+        c = analysis::compare(&prep, &model, &sims).map_err(message)?;
+    }
     let mut numbers = vec![
         ("NRMSE".to_string(), c.nrmse),
         ("noise floor".to_string(), c.noise_floor_nrmse),
@@ -596,8 +636,10 @@ pub fn run_diagnose(a: &DiagnoseArgs) -> Result<ExitCode> {
         &format!("diagnose {}", a.data.dataset.display()),
         &rerun_args::default_rrd(None, &a.data.dataset, "_diagnose"),
     )?;
-    let (prep, _) = match prepare(&ds, &model) {
-        Ok(p) => p,
+    // (a sweep at its coarsest step, which the diagnosis refines where the models it
+    // judges need it: `analysis::diagnose_with`)
+    let prep = match prepare(&ds, &model) {
+        Ok((p, _)) => p,
         Err(e) => {
             rec.discard();
             return Err(e);
@@ -1001,10 +1043,11 @@ fn write_report(
     let mut md = format!("# {} — model vs measurement\n\n", c.dataset);
     if let Some(step_s) = diag.and_then(|d| d.0.simulation_step_s) {
         md.push_str(&format!(
-            "The arm simulated at steps of {:.4} ms (chosen from the data: the coarsest \
-             step whose halving moves the channels by at most {} sigma of their noise).\n\n",
+            "Simulated at steps of {:.4} ms (chosen from the data with the model the \
+             diagnosis ends with: the coarsest step whose halving moves the channels by \
+             at most {} sigma of their noise).\n\n",
             1e3 * step_s,
-            analysis::ARM_STEP_TOLERANCE_SIGMA
+            analysis::STEP_TOLERANCE_SIGMA
         ));
     }
     md.push_str(&format!(

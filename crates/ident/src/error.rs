@@ -102,9 +102,9 @@ pub enum IdentError {
         /// The channel (column name).
         channel: &'static str,
     },
-    /// A sweep-only computation (the analytic frequency response) was asked of another
-    /// kind of dataset.
-    #[error("not a sweep")]
+    /// A sweep-only computation (the analytic frequency response, the sweep's step) was
+    /// asked of another kind of dataset.
+    #[error("not a sweep (kind = \"{kind}\")")]
     NotASweep {
         /// The dataset's kind, as spelled in `dataset.toml`.
         kind: &'static str,

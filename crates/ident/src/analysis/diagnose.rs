@@ -11,7 +11,7 @@ use super::{
     fit_model_from_starts, refine_shape, scan_coordinates, screen_added, screen_model,
     searched_starts, signatures, simulate_arm, split_per_joint, ArmFinding, Comparison, Fitted,
     JointSplit, Prepared, RunResonance, ShapeRefinement, Signature, Staged, Start, Where,
-    SCREEN_JACOBIANS,
+    SCREEN_JACOBIANS, STEP_TOLERANCE_SIGMA,
 };
 use crate::error::IdentError;
 use crate::model::Model;
@@ -110,8 +110,8 @@ pub struct Diagnosis {
     pub arm_findings: Vec<ArmFinding>,
     /// The same against the model with the named effects (else the lead's).
     pub arm_findings_after: Vec<ArmFinding>,
-    /// An arm's simulation step, s (the longest of any run at the prepared data's
-    /// refinement, [`Prepared::with_arm_refinement`]); `None` for the rig and specimens.
+    /// The simulation step of an arm or a sweep, s (the longest of any run at the step
+    /// chosen from the data, [`super::choose_step`]); `None` for the specimens' tests.
     pub simulation_step_s: Option<f64>,
 }
 
@@ -1814,11 +1814,100 @@ pub struct DiagnoseOptions<'a> {
     pub all_pairs: bool,
 }
 
+/// The refinement of `prep`'s plant a sweep's model `f` needs, when finer than
+/// `refinement` ([`super::needed_sweep_step`]), with the sentence that says why.
+fn finer_step(
+    prep: &Prepared<'_>,
+    f: &Fitted,
+    refinement: usize,
+    what: &str,
+) -> Result<Option<(usize, String)>, IdentError> {
+    let Some(need) = super::needed_sweep_step(prep, &f.model, f.nrmse / f.noise_floor, refinement)?
+    else {
+        return Ok(None);
+    };
+    Ok(Some((
+        need.step.refinement,
+        format!(
+            "Simulated at steps of {:.4} ms, chosen from the data with {what}: at {:.4} ms {what} (NRMSE {:.2}x the floor) moved by {:.2} sigma of the noise when the step was halved (more than {STEP_TOLERANCE_SIGMA}), a step error of about {:.0}% of its squared error over the floor. ",
+            1e3 * need.step.step_s,
+            1e3 * need.from_step_s,
+            f.nrmse / f.noise_floor,
+            need.change_sigma,
+            100.0 * need.share.min(1.0),
+        ),
+    )))
+}
+
 /// [`diagnose`] with [`DiagnoseOptions`].
+///
+/// On a sweep, the step is checked twice with the model at hand: the baseline as
+/// fitted at `prep`'s step (before any candidate: a candidate must not be credited with
+/// the simulation's own error), and the model the diagnosis ends with (the named
+/// effects', else the baseline's). Where that model stays above [`FLOOR_MARGIN`] x the
+/// floor and its step error at `prep`'s step is at least [`super::STEP_ERROR_SHARE`] of what
+/// it leaves over the floor, the step is chosen again with it
+/// ([`super::choose_sweep_step`]) and the diagnosis runs (again) at that step: its
+/// searches at the coarse step, every fit it decides on finished at the fine one
+/// ([`Prepared::coarse_twin`]); the explanation says so.
 pub fn diagnose_with(
     prep: &Prepared<'_>,
     model: &Model,
     options: &DiagnoseOptions<'_>,
+) -> Result<(Diagnosis, Fitted, Option<Fitted>), IdentError> {
+    check_registered(options.without)?;
+    if prep.kind != DataKind::SineSweep {
+        return diagnose_at(prep, model, options, None);
+    }
+    let mut refinement = prep.refinement();
+    let mut said = Vec::new();
+    // the baseline's step, its fit at `prep`'s step kept as the search's (the coarse
+    // twin of a finer step is `prep`'s own when `prep` is at the coarsest)
+    let base = fit_model(prep, model)?;
+    if let Some((k, why)) = finer_step(prep, &base, refinement, "the baseline")? {
+        refinement = k;
+        said.push(why);
+    }
+    let searched = (prep.refinement() == 1).then_some(base);
+    let mut result = if refinement == prep.refinement() {
+        diagnose_at(prep, model, options, searched)?
+    } else {
+        diagnose_at(&prep.at_refinement(refinement)?, model, options, searched)?
+    };
+    loop {
+        let (d, base, winner) = &result;
+        let what = if d.missing_effects.is_empty() {
+            "the baseline it ended with".to_string()
+        } else {
+            format!(
+                "the model it ended with ({})",
+                d.missing_effects.join(" and ")
+            )
+        };
+        let ending = winner.as_ref().unwrap_or(base);
+        let Some((k, why)) = finer_step(prep, ending, refinement, &what)? else {
+            break;
+        };
+        refinement = k;
+        said.push(format!("The diagnosis ran again. {why}"));
+        result = diagnose_at(&prep.at_refinement(refinement)?, model, options, None)?;
+    }
+    for s in said {
+        if !result.0.explanation.ends_with(' ') {
+            result.0.explanation.push(' ');
+        }
+        result.0.explanation.push_str(&s);
+    }
+    Ok(result)
+}
+
+/// [`diagnose_with`] at `prep`'s step; `searched`: the baseline already fitted at the
+/// step of `prep`'s coarse twin (else at `prep`'s when it has none).
+fn diagnose_at(
+    prep: &Prepared<'_>,
+    model: &Model,
+    options: &DiagnoseOptions<'_>,
+    searched: Option<Fitted>,
 ) -> Result<(Diagnosis, Fitted, Option<Fitted>), IdentError> {
     let without = options.without;
     check_registered(without)?;
@@ -1828,10 +1917,15 @@ pub fn diagnose_with(
     // The baseline too: a model written by `diagnose` holds its effects, whose search
     // of starting values at the chosen step took 87 of the 88 s of `diagnose --model`
     // on example_arm_joint_friction's written model.
-    let mut base = match &coarse {
-        None => fit_model(prep, model)?,
-        Some(c) => {
-            let f = rescored(prep, fit_model(c, model)?)?;
+    let mut base = match (&coarse, searched) {
+        (None, Some(f)) => f,
+        (None, None) => fit_model(prep, model)?,
+        (Some(c), searched) => {
+            let f = match searched {
+                Some(f) => f,
+                None => fit_model(c, model)?,
+            };
+            let f = rescored(prep, f)?;
             finished(prep, &[&f]).pop().flatten().unwrap_or(f)
         }
     };
@@ -2281,12 +2375,7 @@ pub fn diagnose_with(
         joint_splits,
         arm_findings: arm.base,
         arm_findings_after: arm.after,
-        simulation_step_s: match &prep.ds.kind {
-            crate::DatasetKind::ArmMoves(am) => {
-                Some(crate::plant::longest_step_s(am, prep.arm_refinement))
-            }
-            _ => None,
-        },
+        simulation_step_s: prep.step_s(),
     };
     Ok((diag, base, winner))
 }

@@ -24,6 +24,11 @@
 //!   the data visits, the number of knots chosen by BIC; [`refine_shape`]), and the
 //!   laws of an effect split per joint refined together, a table per joint
 //!   ([`refine_shapes_together`]);
+//! * `step.rs`: the simulation step chosen from the data for the model simulated (the
+//!   coarsest whose halving moves every channel by at most a quarter of its noise:
+//!   [`choose_arm_step`], [`choose_sweep_step`]), an arm prepared at it
+//!   ([`prepared_at_step`]), and the finer step a sweep's model needs where its step
+//!   error shows ([`needed_sweep_step`]);
 //! * `signature.rs`: the residual's signatures, each with the simplest term that would
 //!   produce it, its size and the share of the excess error it removes ([`signatures`]).
 
@@ -35,12 +40,12 @@ mod joints;
 mod prepare;
 mod shape;
 mod signature;
+mod step;
 
 pub use arm::{
-    arm_dataset, arm_findings, choose_arm_step, compare_arm, describe_findings, prepared_at_step,
-    residual_vibration, simulate_arm, simulate_arm_poses, ArmComparison, ArmFinding, ArmStep,
-    ArmWhere, ChannelError, Figures, MoveFigures, StepTrial, ARM_MAX_REFINEMENT,
-    ARM_STEP_TOLERANCE_SIGMA, ARM_WINDOW_S, FINDINGS_TOLD, OFFSET_COUNTS,
+    arm_dataset, arm_findings, compare_arm, describe_findings, residual_vibration, simulate_arm,
+    simulate_arm_poses, ArmComparison, ArmFinding, ArmWhere, ChannelError, Figures, MoveFigures,
+    ARM_WINDOW_S, FINDINGS_TOLD, OFFSET_COUNTS,
 };
 pub use compare::{
     compare, Comparison, FrequencyError, ResidualChecks, RunChannelError, RunError, RunResonance,
@@ -64,3 +69,8 @@ pub use prepare::{
 };
 pub use shape::{refine_shape, refine_shapes_together, KnotChoice, ShapeRefinement, KNOT_COUNTS};
 pub use signature::{describe, signatures, Equivalent, Signature, SignatureKind};
+pub use step::{
+    choose_arm_step, choose_sweep_step, needed_sweep_step, prepared_at_step, SimulationStep,
+    StepNeed, StepTrial, ARM_MAX_REFINEMENT, STEP_ERROR_SHARE, STEP_TOLERANCE_SIGMA,
+    SWEEP_MAX_REFINEMENT,
+};

@@ -300,22 +300,68 @@ impl<'a> Prepared<'a> {
         &self,
         abandon: std::sync::Arc<std::sync::atomic::AtomicBool>,
     ) -> Result<Prepared<'a>, IdentError> {
-        let mut p = self.reprepared(self.arm_refinement)?;
+        let mut p = self.reprepared(self.substeps, self.arm_refinement)?;
         p.abandon = Some(abandon);
         Ok(p)
     }
 
-    /// This data prepared again at the arm refinement `arm_refinement`, with the runs as
-    /// this instance holds them (a caller may have left a run's channels out: prepared
-    /// from the dataset again, they came back, and simulations cached in one instance
-    /// did not match the other's runs).
-    fn reprepared(&self, arm_refinement: usize) -> Result<Prepared<'a>, IdentError> {
-        let mut p = Self::with_substeps(self.ds, self.substeps)?;
+    /// This data prepared again at the refinement `refinement` of its plant's coarsest
+    /// step (an arm's steps of at most [`crate::plant::ARM_MAX_STEP_S`] divided into
+    /// `refinement`, a sweep's [`sim::SWEEP_SUBSTEPS`] x `refinement` sub-steps per
+    /// sample; relaxation and cyclic tests unchanged), with the runs as this instance
+    /// holds them (a caller may have left a run's channels out: prepared from the
+    /// dataset again, they came back, and simulations cached in one instance did not
+    /// match the other's runs).
+    pub fn at_refinement(&self, refinement: usize) -> Result<Prepared<'a>, IdentError> {
+        let refinement = refinement.max(1);
+        match self.kind {
+            DataKind::SineSweep => self.reprepared(sim::SWEEP_SUBSTEPS * refinement, 1),
+            DataKind::ArmMoves => self.reprepared(self.substeps, refinement),
+            _ => self.reprepared(self.substeps, self.arm_refinement),
+        }
+    }
+
+    /// This data prepared again at `substeps` and `arm_refinement`, with the runs as
+    /// this instance holds them ([`Self::at_refinement`]).
+    fn reprepared(
+        &self,
+        substeps: usize,
+        arm_refinement: usize,
+    ) -> Result<Prepared<'a>, IdentError> {
+        let mut p = Self::with_substeps(self.ds, substeps)?;
         if arm_refinement != p.arm_refinement {
             p = p.with_arm_refinement(arm_refinement);
         }
         p.runs = self.runs.clone();
         Ok(p)
+    }
+
+    /// The refinement of the plant's coarsest step this instance simulates at
+    /// ([`Self::at_refinement`]): an arm's [`Self::arm_refinement`], a sweep's sub-steps
+    /// over [`sim::SWEEP_SUBSTEPS`] (at least 1); 1 for the specimens' tests.
+    pub fn refinement(&self) -> usize {
+        match self.kind {
+            DataKind::ArmMoves => self.arm_refinement,
+            DataKind::SineSweep => (self.substeps / sim::SWEEP_SUBSTEPS).max(1),
+            _ => 1,
+        }
+    }
+
+    /// The longest simulation step of any run, s (an arm's or a sweep's; `None` for the
+    /// specimens' tests, whose simulation has no step error to speak of).
+    pub fn step_s(&self) -> Option<f64> {
+        match &self.ds.kind {
+            DatasetKind::ArmMoves(am) => {
+                Some(crate::plant::longest_step_s(am, self.arm_refinement))
+            }
+            DatasetKind::SineSweep(sw) => Some(
+                sw.runs
+                    .iter()
+                    .map(|r| r.dt_s() / self.substeps.max(1) as f64)
+                    .fold(0.0, f64::max),
+            ),
+            _ => None,
+        }
     }
 
     /// [`IdentError::Abandoned`] once this instance's work was abandoned.
@@ -334,14 +380,15 @@ impl<'a> Prepared<'a> {
         self
     }
 
-    /// The same data at an arm's coarsest step (refinement 1, steps of at most
-    /// [`crate::plant::ARM_MAX_STEP_S`]) when this one is finer, where a diagnosis
-    /// searches ([`super::diagnose`]); `None` otherwise.
+    /// The same data at the plant's coarsest step (refinement 1: an arm's steps of at
+    /// most [`crate::plant::ARM_MAX_STEP_S`], a sweep's [`sim::SWEEP_SUBSTEPS`]
+    /// sub-steps per sample) when this one is finer, where a diagnosis searches
+    /// ([`super::diagnose`]); `None` otherwise.
     pub fn coarse_twin(&self) -> Result<Option<Prepared<'a>>, IdentError> {
-        if self.kind != DataKind::ArmMoves || self.arm_refinement <= 1 {
+        if self.refinement() <= 1 {
             return Ok(None);
         }
-        Ok(Some(self.reprepared(1)?))
+        Ok(Some(self.at_refinement(1)?))
     }
 
     /// Simulates `model` on every run (in parallel, results in run order); returns, for

@@ -600,7 +600,7 @@ fn arm_payload_mass_effect_is_a_payload_the_servos_do_not_know() {
 /// model compared at it sits at its floors while at 1 ms it may not.
 #[test]
 fn arm_step_is_chosen_from_the_data() {
-    use longreach_ident::analysis::{choose_arm_step, ARM_STEP_TOLERANCE_SIGMA};
+    use longreach_ident::analysis::{choose_arm_step, STEP_TOLERANCE_SIGMA};
     let dir = tempfile::tempdir().unwrap();
     let mut opt = ArmMovesOptions::new(root().join(SCENARIO), 9);
     opt.duration_s = 1.5;
@@ -625,10 +625,10 @@ fn arm_step_is_chosen_from_the_data() {
     // converged within the tolerance at the step kept, or the finest step kept and
     // said so
     if s.converged {
-        assert!(last.change_sigma <= ARM_STEP_TOLERANCE_SIGMA, "{s:?}");
+        assert!(last.change_sigma <= STEP_TOLERANCE_SIGMA, "{s:?}");
         assert_eq!(last.refinement, s.refinement);
     } else {
-        assert!(last.change_sigma > ARM_STEP_TOLERANCE_SIGMA, "{s:?}");
+        assert!(last.change_sigma > STEP_TOLERANCE_SIGMA, "{s:?}");
         assert_eq!(s.refinement, longreach_ident::analysis::ARM_MAX_REFINEMENT);
     }
     for w in s.trials.windows(2) {

@@ -17,6 +17,7 @@ mod relay_friction;
 mod sensors;
 mod shapes;
 mod signatures;
+mod sweep_step;
 mod tensions;
 
 /// The two stages of `m`'s fit on `prep` against its whole fit: the screen lies between

@@ -41,6 +41,8 @@ use crate::model::Model;
 use crate::plant::{ArmPlant, ArmPoses, Channels, Plant};
 use crate::sensors::Encoder;
 
+use super::SimulationStep;
+
 /// Length of the windows the error is cut into, s.
 pub const ARM_WINDOW_S: f64 = 0.5;
 
@@ -141,8 +143,8 @@ pub struct ArmComparison {
     /// ([`arm_findings`]).
     pub findings: Vec<ArmFinding>,
     /// The simulation step the model ran at, when it was chosen from the data
-    /// ([`choose_arm_step`]; `None`: steps of at most [`crate::plant::ARM_MAX_STEP_S`]).
-    pub step: Option<ArmStep>,
+    /// ([`super::choose_arm_step`]; `None`: steps of at most [`crate::plant::ARM_MAX_STEP_S`]).
+    pub step: Option<SimulationStep>,
 }
 
 /// The phases of a run from its commands: first and last sample where any command
@@ -295,7 +297,7 @@ fn extreme_at(time_s: &[f64], r: &[f64], i: usize) -> (f64, f64) {
 
 /// The simulated channels of every run of `ds` with `model` (in parallel, run order),
 /// every step of at most [`crate::plant::ARM_MAX_STEP_S`] divided into `refinement`
-/// ([`choose_arm_step`]).
+/// ([`super::choose_arm_step`]).
 pub fn simulate_arm(
     ds: &Dataset,
     model: &Model,
@@ -500,115 +502,4 @@ pub fn arm_dataset(ds: &Dataset) -> Option<&ArmMovesDataset> {
         DatasetKind::ArmMoves(a) => Some(a),
         _ => None,
     }
-}
-
-/// The step error `compare` and `diagnose` accept on an arm, in noise standard
-/// deviations: the largest over the measured channels of every run of the RMS change
-/// of the channel (over its noise, [`crate::plant::ARM_STACKED`]) when the step is
-/// halved. The
-/// arm's step error falls as the step (first order), so the error left is about twice
-/// that change: at most 0.5 sigma, 12% on the noise floor in quadrature.
-pub const ARM_STEP_TOLERANCE_SIGMA: f64 = 0.25;
-
-pub use crate::plant::ARM_MAX_REFINEMENT;
-
-/// One halving of the arm's simulation step.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct StepTrial {
-    /// Refinement of [`crate::plant::ARM_MAX_STEP_S`] (steps per 1 ms-sized step).
-    pub refinement: usize,
-    /// The longest step of any run at this refinement, s.
-    pub step_s: f64,
-    /// Largest RMS change of any channel of any run (over its noise) from this step to
-    /// half of it.
-    pub change_sigma: f64,
-    /// The model's NRMSE against the data at this step (every channel over its noise,
-    /// [`crate::plant::ARM_STACKED`]).
-    pub nrmse: f64,
-}
-
-/// The simulation step chosen from the data ([`choose_arm_step`]).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ArmStep {
-    /// The refinement chosen: the coarsest whose halving changes every channel by at
-    /// most [`ARM_STEP_TOLERANCE_SIGMA`], or [`ARM_MAX_REFINEMENT`] (its halving
-    /// measured too).
-    pub refinement: usize,
-    /// The longest step of any run at that refinement, s.
-    pub step_s: f64,
-    /// Whether the halving at the chosen step stayed within the tolerance (false: at
-    /// the finest step its halving still moved a channel by more; its change is the
-    /// last trial's).
-    pub converged: bool,
-    /// Every halving tried, coarsest first.
-    pub trials: Vec<StepTrial>,
-}
-
-/// Chooses the arm's simulation step from the prepared data: `model` is simulated at steps of
-/// at most [`crate::plant::ARM_MAX_STEP_S`] (1 ms), then at half of that, and so on;
-/// the first step whose halving changes the channels by at most
-/// [`ARM_STEP_TOLERANCE_SIGMA`] noise standard deviations is kept (so that the
-/// simulation's own error stays below the sensors' noise), [`ARM_MAX_REFINEMENT`] at
-/// most. Each trial records the model's NRMSE at its step: it stops moving where the
-/// change does.
-pub fn choose_arm_step(prep: &super::Prepared<'_>, model: &Model) -> Result<ArmStep, IdentError> {
-    let ds = prep.ds;
-    let DatasetKind::ArmMoves(am) = &ds.kind else {
-        return Err(IdentError::NotAnArm {
-            kind: ds.kind.name(),
-        });
-    };
-    let step_of = |k: usize| crate::plant::longest_step_s(am, k);
-    // the prepared data's NRMSE (every channel over its noise, stacked)
-    let nrmse = |sims: &[Channels]| -> f64 {
-        let stacked: Vec<Vec<f64>> = sims.iter().map(|s| s.primary().to_vec()).collect();
-        prep.overall(&stacked).0
-    };
-    let mut trials = Vec::new();
-    let mut k = 1;
-    let mut coarse = simulate_arm(ds, model, k)?;
-    loop {
-        let fine = simulate_arm(ds, model, 2 * k)?;
-        // each channel of each run on its own (a channel that moves must not hide
-        // among the many that barely do)
-        let mut change_sigma = 0.0f64;
-        for ((a, b), r) in coarse.iter().zip(&fine).zip(&am.runs) {
-            let n = r.time_s.len().max(1);
-            for (x, y) in a.primary().chunks(n).zip(b.primary().chunks(n)) {
-                let ss: f64 = x.iter().zip(y).map(|(p, q)| (p - q).powi(2)).sum();
-                change_sigma = change_sigma.max((ss / n as f64).sqrt());
-            }
-        }
-        trials.push(StepTrial {
-            refinement: k,
-            step_s: step_of(k),
-            change_sigma,
-            nrmse: nrmse(&coarse),
-        });
-        if change_sigma <= ARM_STEP_TOLERANCE_SIGMA || k >= ARM_MAX_REFINEMENT {
-            return Ok(ArmStep {
-                refinement: k,
-                step_s: step_of(k),
-                converged: change_sigma <= ARM_STEP_TOLERANCE_SIGMA,
-                trials,
-            });
-        }
-        k *= 2;
-        coarse = fine;
-    }
-}
-
-/// `ds` prepared for `fit`, `compare` and `diagnose`: an arm's at the step
-/// [`choose_arm_step`] chooses with `model` (returned too); other kinds as
-/// [`super::Prepared::new`] prepares them.
-pub fn prepared_at_step<'a>(
-    ds: &'a Dataset,
-    model: &Model,
-) -> Result<(super::Prepared<'a>, Option<ArmStep>), IdentError> {
-    let prep = super::Prepared::new(ds)?;
-    if !matches!(ds.kind, DatasetKind::ArmMoves(_)) {
-        return Ok((prep, None));
-    }
-    let step = choose_arm_step(&prep, model)?;
-    Ok((prep.with_arm_refinement(step.refinement), Some(step)))
 }
