@@ -111,7 +111,8 @@ pub struct Diagnosis {
     /// The same against the model with the named effects (else the lead's).
     pub arm_findings_after: Vec<ArmFinding>,
     /// The simulation step of an arm or a sweep, s (the longest of any run at the step
-    /// chosen from the data, [`super::choose_step`]); `None` for the specimens' tests.
+    /// chosen from the data, [`super::choose_arm_step`], [`super::choose_sweep_step`]);
+    /// `None` for the specimens' tests.
     pub simulation_step_s: Option<f64>,
 }
 
@@ -1870,9 +1871,14 @@ pub fn diagnose_with(
     }
     let searched = (prep.refinement() == 1).then_some(base);
     let mut result = if refinement == prep.refinement() {
-        diagnose_at(prep, model, options, searched)?
+        diagnose_at(prep, model, options, searched.clone())?
     } else {
-        diagnose_at(&prep.at_refinement(refinement)?, model, options, searched)?
+        diagnose_at(
+            &prep.at_refinement(refinement)?,
+            model,
+            options,
+            searched.clone(),
+        )?
     };
     loop {
         let (d, base, winner) = &result;
@@ -1890,7 +1896,12 @@ pub fn diagnose_with(
         };
         refinement = k;
         said.push(format!("The diagnosis ran again. {why}"));
-        result = diagnose_at(&prep.at_refinement(refinement)?, model, options, None)?;
+        result = diagnose_at(
+            &prep.at_refinement(refinement)?,
+            model,
+            options,
+            searched.clone(),
+        )?;
     }
     for s in said {
         if !result.0.explanation.ends_with(' ') {
