@@ -501,3 +501,51 @@ fn arm_synth_compare_report() {
     let (ok, _, err) = synth(&["--move", "j9:0.1"]);
     assert!(!ok && err.contains("`j9` is not driven"), "{err}");
 }
+
+/// `compare` refines a sweep's step where the model's step error shows: a relay-friction
+/// truth with arm-sized pulleys (1e-3 kg*m^2; backward-Euler relays), made at 0.125 ms
+/// and compared with the model file of its values, says why the step was refined
+/// (0.3125 ms) and ends at the floor, where at 2.5 ms it sat at 1.50x
+/// (`sweep_step::a_sweep_diagnosis_refines_the_step_its_baseline_needs` in the ident
+/// tests is the diagnosis of the same data).
+#[test]
+fn compare_refines_a_sweeps_step_where_the_model_needs_it() {
+    use longreach_ident::model::{BaseParam, Model, ParamDef};
+    use longreach_ident::synth::{self, SweepOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let mut opt = SweepOptions::paper("dyneema2", 5);
+    opt.runs = vec![(147.0, 4.5f64.to_radians()), (294.0, 3f64.to_radians())];
+    opt.frequencies_hz = vec![0.5, 1.5, 2.4, 3.0, 4.5];
+    opt.settle_s = 2.0;
+    opt.min_hold_s = 2.0;
+    opt.substeps = 40;
+    let ds0 = longreach_ident::Dataset::load(example("example_sweep_control")).unwrap();
+    let mut truth = Model::baseline(&ds0)
+        .unwrap()
+        .with_effect(longreach_drive::effects::find("relay_friction").unwrap());
+    truth.base = vec![ParamDef::base(BaseParam::K1Scale, 1.0, 0.2, 5.0)];
+    truth.effects[0].params[0].value = 0.01;
+    truth.effects[0].params[1].value = 1e-3;
+    let ds = dir.path().join("ds");
+    synth::sweep(&truth, &opt)
+        .unwrap()
+        .write(&ds, "relay")
+        .unwrap();
+    let m = dir.path().join("truth.toml");
+    std::fs::write(&m, truth.to_toml("the truth")).unwrap();
+    let cj = dir.path().join("c.json");
+    let (ok, out, err) = longreach(&[
+        "compare",
+        ds.to_str().unwrap(),
+        "--model",
+        m.to_str().unwrap(),
+        "--json",
+        cj.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("simulation step 0.3125 ms"), "{out}");
+    assert!(out.contains("at 2.5000 ms the model (1.5"), "{out}");
+    let c = json(&cj);
+    let ratio = c["nrmse"].as_f64().unwrap() / c["noise_floor_nrmse"].as_f64().unwrap();
+    assert!(ratio < 1.05, "{ratio}");
+}
