@@ -548,4 +548,8 @@ fn compare_refines_a_sweeps_step_where_the_model_needs_it() {
     let c = json(&cj);
     let ratio = c["nrmse"].as_f64().unwrap() / c["noise_floor_nrmse"].as_f64().unwrap();
     assert!(ratio < 1.05, "{ratio}");
+    assert!(
+        (c["simulation_step_s"].as_f64().unwrap() - 3.125e-4).abs() < 1e-12,
+        "{c}"
+    );
 }

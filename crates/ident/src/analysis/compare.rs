@@ -157,6 +157,9 @@ pub struct Comparison {
     pub residual: ResidualChecks,
     /// Resonances (sweeps).
     pub resonance: Vec<RunResonance>,
+    /// The simulation step of an arm or a sweep as prepared, s (the longest of any
+    /// run; [`Prepared::step_s`]); `None` for the specimens' tests.
+    pub simulation_step_s: Option<f64>,
 }
 
 /// Compares a (fitted) model with the dataset; `sims` are its simulations.
@@ -377,6 +380,7 @@ pub fn compare(
         worst_windows: windows,
         residual,
         resonance,
+        simulation_step_s: prep.step_s(),
     })
 }
 
