@@ -438,6 +438,7 @@ pub fn run_fit(a: &FitArgs) -> Result<ExitCode> {
                 "rms_before": rms_before,
                 "rms": rms_after,
                 "rms_unit": unit,
+                "simulation_step_s": prep.step_s(),
                 "converged": f.fit.as_ref().map(|r| r.converged),
                 "interval_method": f.fit.as_ref().map(|r| r.interval_method.clone()),
             }),

@@ -502,14 +502,14 @@ fn arm_synth_compare_report() {
     assert!(!ok && err.contains("`j9` is not driven"), "{err}");
 }
 
-/// `compare` refines a sweep's step where the model's step error shows: a relay-friction
+/// `compare` and `fit` refine a sweep's step where the model's step error shows: a relay-friction
 /// truth with arm-sized pulleys (1e-3 kg*m^2; backward-Euler relays), made at 0.125 ms
 /// and compared with the model file of its values, says why the step was refined
-/// (0.3125 ms) and ends at the floor, where at 2.5 ms it sat at 1.50x
-/// (`sweep_step::a_sweep_diagnosis_refines_the_step_its_baseline_needs` in the ident
-/// tests is the diagnosis of the same data).
+/// (0.3125 ms) and ends at the floor, where at 2.5 ms it sat at 1.50x; `fit` with the
+/// stiffness free does the same (`sweep_step::a_sweep_diagnosis_refines_the_step_its_baseline_needs`
+/// in the ident tests is the diagnosis of the same data).
 #[test]
-fn compare_refines_a_sweeps_step_where_the_model_needs_it() {
+fn compare_and_fit_refine_a_sweeps_step_where_the_model_needs_it() {
     use longreach_ident::model::{BaseParam, Model, ParamDef};
     use longreach_ident::synth::{self, SweepOptions};
     let dir = tempfile::tempdir().unwrap();
@@ -551,5 +551,33 @@ fn compare_refines_a_sweeps_step_where_the_model_needs_it() {
     assert!(
         (c["simulation_step_s"].as_f64().unwrap() - 3.125e-4).abs() < 1e-12,
         "{c}"
+    );
+    // `fit` with the rope's stiffness free and the relay values held: the stiffness
+    // cannot take up the relays' step error, the fit at 2.5 ms stays above the floor,
+    // and it is fitted on at the refined step, to the floor and the truth's stiffness
+    let mut held = truth.clone();
+    for p in &mut held.effects[0].params {
+        p.fit = false;
+    }
+    std::fs::write(&m, held.to_toml("relay values held")).unwrap();
+    let fj = dir.path().join("f.json");
+    let (ok, out, err) = longreach(&[
+        "fit",
+        ds.to_str().unwrap(),
+        "--model",
+        m.to_str().unwrap(),
+        "--json",
+        fj.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("simulation step 0.3125 ms"), "{out}");
+    let f = json(&fj);
+    let ratio = f["nrmse"].as_f64().unwrap() / f["noise_floor_nrmse"].as_f64().unwrap();
+    assert!(ratio < 1.05, "{ratio}");
+    let k1 = f["params"]["k1_scale"]["value"].as_f64().unwrap();
+    assert!((k1 - 1.0).abs() < 1e-3, "{k1}");
+    assert!(
+        (f["simulation_step_s"].as_f64().unwrap() - 3.125e-4).abs() < 1e-12,
+        "{f}"
     );
 }
