@@ -1043,13 +1043,24 @@ fn write_report(
     crate::output::output_dir(dir, "--report")?;
     let mut md = format!("# {} — model vs measurement\n\n", c.dataset);
     if let Some(step_s) = diag.and_then(|d| d.0.simulation_step_s) {
-        md.push_str(&format!(
-            "Simulated at steps of {:.4} ms (chosen from the data with the model the \
-             diagnosis ends with: the coarsest step whose halving moves the channels by \
-             at most {} sigma of their noise).\n\n",
-            1e3 * step_s,
-            analysis::STEP_TOLERANCE_SIGMA
-        ));
+        if prep.kind == effects::DataKind::ArmMoves {
+            md.push_str(&format!(
+                "The arm simulated at steps of {:.4} ms (chosen from the data: the coarsest \
+                 step whose halving moves the channels by at most {} sigma of their noise).\n\n",
+                1e3 * step_s,
+                analysis::STEP_TOLERANCE_SIGMA
+            ));
+        } else {
+            md.push_str(&format!(
+                "The rig simulated at steps of {:.4} ms (2.5 ms unless a model the diagnosis \
+                 judged showed its step error: at least {:.0}% of what it left over the floor; \
+                 then the coarsest step whose halving moves the channels by at most {} sigma \
+                 of their noise).\n\n",
+                1e3 * step_s,
+                100.0 * analysis::STEP_ERROR_SHARE,
+                analysis::STEP_TOLERANCE_SIGMA
+            ));
+        }
     }
     md.push_str(&format!(
         "Overall NRMSE **{:.4}** (noise floor {:.4}).\n\n| run | NRMSE | floor | share |\n|---|---|---|---|\n",
