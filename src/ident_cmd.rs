@@ -154,6 +154,21 @@ pub struct SynthArgs {
     /// Leave out the tension channels of sweeps.
     #[arg(long)]
     no_tension: bool,
+    /// Test frequencies of the sweep runs [Hz], in the order played.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "0.1,0.2,0.4,0.7,1,1.4,1.8,2.1,2.4,2.7,3,3.3,3.6,4,4.5,5,6"
+    )]
+    frequencies_hz: Vec<f64>,
+    /// Settle time of every sweep frequency before its analysed hold [s] (the hold is
+    /// at least 2 s and 2 cycles).
+    #[arg(long, default_value_t = 3.0)]
+    settle_s: f64,
+    /// Simulation sub-steps per 5 ms sample of a sweep's truth (5: 1 ms; finer makes
+    /// data whose own step error is smaller, as a rig's has none).
+    #[arg(long, default_value_t = 5)]
+    substeps: usize,
     /// Strain of a relaxation test; several (`0.01,0.02`) write one run per strain,
     /// which tells laws of tension apart that one strain cannot.
     #[arg(long, value_delimiter = ',', default_value = "0.015")]
@@ -996,6 +1011,28 @@ pub fn run_synth(a: &SynthArgs) -> Result<ExitCode> {
                 .map(|&t| (t, a.amplitude_deg.to_radians()))
                 .collect();
             opt.tension_channels = !a.no_tension;
+            if a.frequencies_hz.is_empty()
+                || a.frequencies_hz
+                    .iter()
+                    .any(|f| !(f.is_finite() && *f > 0.0))
+            {
+                bail!(
+                    "--frequencies-hz {:?}: give one or more positive frequencies in Hz, e.g. 0.5,1,2.4",
+                    a.frequencies_hz
+                );
+            }
+            if !(a.settle_s.is_finite() && a.settle_s >= 0.0) {
+                bail!("--settle-s {}: give a settle time >= 0 s", a.settle_s);
+            }
+            if !(1..=1000).contains(&a.substeps) {
+                bail!(
+                    "--substeps {}: give 1 to 1000 sub-steps per sample",
+                    a.substeps
+                );
+            }
+            opt.frequencies_hz = a.frequencies_hz.clone();
+            opt.settle_s = a.settle_s;
+            opt.substeps = a.substeps;
             let d = synth::sweep(&model, &opt).map_err(message)?;
             d.write(&a.out, &title)?;
         }

@@ -502,82 +502,97 @@ fn arm_synth_compare_report() {
     assert!(!ok && err.contains("`j9` is not driven"), "{err}");
 }
 
-/// `compare` and `fit` refine a sweep's step where the model's step error shows: a relay-friction
-/// truth with arm-sized pulleys (1e-3 kg*m^2; backward-Euler relays), made at 0.125 ms
-/// and compared with the model file of its values, says why the step was refined
-/// (0.3125 ms) and ends at the floor, where at 2.5 ms it sat at 1.50x; `fit` with the
-/// stiffness free does the same (`sweep_step::a_sweep_diagnosis_refines_the_step_its_baseline_needs`
-/// in the ident tests is the diagnosis of the same data).
+/// `compare` and `fit` refine a sweep's step where the model's step error shows: a
+/// relay-friction truth with arm-sized pulleys (1e-3 kg*m^2; backward-Euler relays),
+/// made by `synth` at 0.125 ms (`--substeps 40`) and compared with the model file of
+/// its values, says why the step was refined (0.3125 ms) and ends at the floor, where
+/// at 2.5 ms it sat at about 1.5x; `fit` with the stiffness free does the same
+/// (`sweep_step::a_sweep_diagnosis_refines_the_step_its_baseline_needs` in the ident
+/// tests is the diagnosis of such data).
 #[test]
 fn compare_and_fit_refine_a_sweeps_step_where_the_model_needs_it() {
-    use longreach_ident::model::{BaseParam, Model, ParamDef};
-    use longreach_ident::synth::{self, SweepOptions};
     let dir = tempfile::tempdir().unwrap();
-    let mut opt = SweepOptions::paper("dyneema2", 5);
-    opt.runs = vec![(147.0, 4.5f64.to_radians()), (294.0, 3f64.to_radians())];
-    opt.frequencies_hz = vec![0.5, 1.5, 2.4, 3.0, 4.5];
-    opt.settle_s = 2.0;
-    opt.min_hold_s = 2.0;
-    opt.substeps = 40;
-    let ds0 = longreach_ident::Dataset::load(example("example_sweep_control")).unwrap();
-    let mut truth = Model::baseline(&ds0)
-        .unwrap()
-        .with_effect(longreach_drive::effects::find("relay_friction").unwrap());
-    truth.base = vec![ParamDef::base(BaseParam::K1Scale, 1.0, 0.2, 5.0)];
-    truth.effects[0].params[0].value = 0.01;
-    truth.effects[0].params[1].value = 1e-3;
-    let ds = dir.path().join("ds");
-    synth::sweep(&truth, &opt)
-        .unwrap()
-        .write(&ds, "relay")
-        .unwrap();
+    // the truth's file: the relay values held, the rope's stiffness free (for `fit`)
     let m = dir.path().join("truth.toml");
-    std::fs::write(&m, truth.to_toml("the truth")).unwrap();
-    let cj = dir.path().join("c.json");
-    let (ok, out, err) = longreach(&[
-        "compare",
-        ds.to_str().unwrap(),
+    std::fs::write(
+        &m,
+        "rope = \"dyneema2\"\nlaw = \"four_element\"\n\n[params.k1_scale]\nvalue = 1.0\n\
+         fit = true\nlower = 0.2\nupper = 5.0\n\n[[effect]]\nname = \"relay_friction\"\n\n\
+         [effect.params.coefficient]\nvalue = 0.01\nfit = false\n\n\
+         [effect.params.inertia_kg_m2]\nvalue = 1e-3\nfit = false\n",
+    )
+    .unwrap();
+    let ds = dir.path().join("ds");
+    let (ok, _, err) = longreach(&[
+        "synth",
+        "--kind",
+        "sine-sweep",
         "--model",
         m.to_str().unwrap(),
-        "--json",
-        cj.to_str().unwrap(),
+        "--tensions-n",
+        "147,294",
+        "--frequencies-hz",
+        "0.5,1.5,2.4,3,4.5",
+        "--settle-s",
+        "2",
+        "--substeps",
+        "40",
+        "--seed",
+        "5",
+        "--out",
+        ds.to_str().unwrap(),
     ]);
     assert!(ok, "{err}");
-    assert!(out.contains("simulation step 0.3125 ms"), "{out}");
-    assert!(out.contains("at 2.5000 ms the model (1.5"), "{out}");
-    let c = json(&cj);
-    let ratio = c["nrmse"].as_f64().unwrap() / c["noise_floor_nrmse"].as_f64().unwrap();
-    assert!(ratio < 1.05, "{ratio}");
-    assert!(
-        (c["simulation_step_s"].as_f64().unwrap() - 3.125e-4).abs() < 1e-12,
-        "{c}"
-    );
-    // `fit` with the rope's stiffness free and the relay values held: the stiffness
-    // cannot take up the relays' step error, the fit at 2.5 ms stays above the floor,
-    // and it is fitted on at the refined step, to the floor and the truth's stiffness
-    let mut held = truth.clone();
-    for p in &mut held.effects[0].params {
-        p.fit = false;
+    // the schedule's flags refuse what no sweep can play, naming the flag
+    for (flag, value) in [
+        ("--frequencies-hz", "0"),
+        ("--settle-s", "-1"),
+        ("--substeps", "0"),
+    ] {
+        let bad = dir.path().join("bad");
+        let arg = format!("{flag}={value}");
+        let (ok, _, err) = longreach(&[
+            "synth",
+            "--kind",
+            "sine-sweep",
+            &arg,
+            "--out",
+            bad.to_str().unwrap(),
+        ]);
+        assert!(!ok && err.contains(flag), "{flag} {value}: {err}");
+        assert!(!bad.exists(), "{flag}: a dataset was written");
     }
-    std::fs::write(&m, held.to_toml("relay values held")).unwrap();
-    let fj = dir.path().join("f.json");
-    let (ok, out, err) = longreach(&[
-        "fit",
-        ds.to_str().unwrap(),
-        "--model",
-        m.to_str().unwrap(),
-        "--json",
-        fj.to_str().unwrap(),
-    ]);
-    assert!(ok, "{err}");
-    assert!(out.contains("simulation step 0.3125 ms"), "{out}");
-    let f = json(&fj);
-    let ratio = f["nrmse"].as_f64().unwrap() / f["noise_floor_nrmse"].as_f64().unwrap();
-    assert!(ratio < 1.05, "{ratio}");
-    let k1 = f["params"]["k1_scale"]["value"].as_f64().unwrap();
-    assert!((k1 - 1.0).abs() < 1e-3, "{k1}");
-    assert!(
-        (f["simulation_step_s"].as_f64().unwrap() - 3.125e-4).abs() < 1e-12,
-        "{f}"
-    );
+    // `compare` at the truth; `fit` with the rope's stiffness free and the relay values
+    // held: the stiffness cannot take up the relays' step error, the fit at 2.5 ms stays
+    // above the floor, and it is fitted on at the refined step
+    for command in ["compare", "fit"] {
+        let j = dir.path().join(format!("{command}.json"));
+        let (ok, out, err) = longreach(&[
+            command,
+            ds.to_str().unwrap(),
+            "--model",
+            m.to_str().unwrap(),
+            "--json",
+            j.to_str().unwrap(),
+        ]);
+        assert!(ok, "{command}: {err}");
+        assert!(
+            out.contains("simulation step 0.3125 ms"),
+            "{command}: {out}"
+        );
+        assert!(
+            out.contains("at 2.5000 ms the model (1."),
+            "{command}: {out}"
+        );
+        let c = json(&j);
+        let ratio = c["nrmse"].as_f64().unwrap() / c["noise_floor_nrmse"].as_f64().unwrap();
+        assert!(ratio < 1.05, "{command}: {ratio}");
+        let step_s = c["simulation_step_s"].as_f64().unwrap();
+        assert!((step_s - 3.125e-4).abs() < 1e-12, "{command}: {c}");
+        if command == "fit" {
+            // the truth's stiffness
+            let k1 = c["params"]["k1_scale"]["value"].as_f64().unwrap();
+            assert!((k1 - 1.0).abs() < 1e-3, "{k1}");
+        }
+    }
 }
